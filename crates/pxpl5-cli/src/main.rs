@@ -1,0 +1,2 @@
+//! The `pxpl5` command line (being written).
+fn main() {}

@@ -1,0 +1,655 @@
+//! One Renderer board: validates each IGC command, charges its cycles from the cycle table,
+//! interlocks with the backing store, and hands the pixel work to the engine of the chosen
+//! fidelity level.
+//!
+//! Time on a board is a count of Renderer cycles since it was built ([`Board::now`]). A command
+//! starts when the board is free and every backing-store transfer touching its fields has finished
+//! (the wait is a *stall*, counted apart from work), and ends [`cycle_cost`] cycles later. A
+//! backing-store transfer runs in the background on the board's one transfer engine: transfers
+//! queue behind each other, and the foreground goes on.
+
+use std::collections::BTreeMap;
+
+use pxpl5_config::RendererConfig;
+use pxpl5_sim::Cycles;
+use sha2::{Digest, Sha256};
+use thiserror::Error;
+
+use crate::command::{Bit, Command, Field, Rect};
+use crate::cycles::{backing_store_blocks, backing_store_cycles, cycle_cost};
+use crate::engine::bit::BitEngine;
+use crate::engine::word::WordEngine;
+use crate::engine::{Geometry, PixelEngine, QeeSink};
+use crate::qee::{COEFFICIENT_NAMES, Streams};
+use crate::readback::pack;
+
+/// How the pixel work is simulated. Results and cycle counts are identical at every level.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Fidelity {
+    /// Every micro-cycle on bit-planes: the reference.
+    Bit,
+    /// Per-pixel integer arithmetic with the same semantics.
+    Word,
+}
+
+impl Fidelity {
+    pub fn name(self) -> &'static str {
+        match self {
+            Fidelity::Bit => "bit",
+            Fidelity::Word => "word",
+        }
+    }
+}
+
+impl std::str::FromStr for Fidelity {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Fidelity, String> {
+        match s {
+            "bit" => Ok(Fidelity::Bit),
+            "word" => Ok(Fidelity::Word),
+            _ => Err(format!("unknown fidelity `{s}` (expected bit or word)")),
+        }
+    }
+}
+
+/// A command the board cannot execute: a program's mistake, never a panic.
+#[derive(Clone, Debug, PartialEq, Eq, Error)]
+pub enum CommandError {
+    #[error("{kind}: field {offset}+{bits} lies outside the {memory} bits of pixel memory")]
+    FieldOutside {
+        kind: &'static str,
+        offset: u32,
+        bits: u32,
+        memory: u32,
+    },
+    #[error("{kind}: a field must have 1 to 64 bits (got {bits})")]
+    FieldWidth { kind: &'static str, bits: u32 },
+    #[error("{kind}: flag {flag} does not exist (the board has {flags} flag registers)")]
+    NoSuchFlag {
+        kind: &'static str,
+        flag: u8,
+        flags: u32,
+    },
+    #[error("{kind}: fields {a:?} and {b:?} overlap without being the same bits")]
+    Overlap { kind: &'static str, a: Field, b: Field },
+    #[error("{kind}: raw coefficient {name} = {raw} does not fit {bits}-bit QEE coefficients")]
+    Coefficient {
+        kind: &'static str,
+        name: &'static str,
+        raw: i64,
+        bits: u32,
+    },
+    #[error(
+        "{kind}: result window shift {shift} + bits {bits} must be 1 to {max} bits \
+         (renderer.qee.max_result_bits)"
+    )]
+    Window {
+        kind: &'static str,
+        shift: u32,
+        bits: u32,
+        max: u32,
+    },
+    #[error("{kind}: window of {window} bits does not match field of {field} bits")]
+    WidthMismatch {
+        kind: &'static str,
+        window: u32,
+        field: u32,
+    },
+    #[error("{kind}: value {value:#x} does not fit a {bits}-bit field")]
+    Constant {
+        kind: &'static str,
+        value: u64,
+        bits: u32,
+    },
+    #[error("mul_const: k = {k} does not fit {k_bits}-bit two's complement (k_bits 1 to 32)")]
+    Multiplier { k: i64, k_bits: u32 },
+    #[error(
+        "set_origin: origin ({x}, {y}) puts pixel addresses beyond 2^{coordinate_bits} \
+         (renderer.qee.coordinate_bits)"
+    )]
+    Origin {
+        x: u32,
+        y: u32,
+        coordinate_bits: u32,
+    },
+    #[error("{kind}: blocks {first}..{end} lie outside the {blocks} blocks of the backing store")]
+    BackingStore {
+        kind: &'static str,
+        first: u32,
+        end: u32,
+        blocks: u32,
+    },
+    #[error("readback: rectangle {rect:?} is empty or outside the {width} x {height} array")]
+    Rect { rect: Rect, width: u32, height: u32 },
+}
+
+/// What executing one command did.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Executed {
+    /// Cycle the command started (after any stall).
+    pub start: Cycles,
+    /// Cycle the board is free again.
+    pub end: Cycles,
+    /// Cycles waited for the backing store before starting.
+    pub stall: Cycles,
+    /// Ring words for `dest`, for a readback.
+    pub readback: Option<ReadbackWords>,
+}
+
+/// The words a readback sends, and to whom.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ReadbackWords {
+    /// The ring node the words are for (opaque to the board).
+    pub dest: u32,
+    /// Ring words of `word_bits` bits, packed as [`crate::readback`] documents.
+    pub words: Vec<u64>,
+}
+
+/// Per command kind: how many ran and the cycles they took.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct KindStats {
+    pub count: u64,
+    pub cycles: u64,
+}
+
+/// Simulated statistics of a board (never host figures).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct BoardStats {
+    pub commands: u64,
+    /// Cycles spent executing commands.
+    pub busy: Cycles,
+    /// Cycles commands waited for the backing store.
+    pub stall: Cycles,
+    /// Cycles the backing-store engine moved blocks.
+    pub backing_store_busy: Cycles,
+    pub by_kind: BTreeMap<&'static str, KindStats>,
+}
+
+/// A transfer in flight: which bits of pixel memory, and when it is done.
+#[derive(Clone, Copy, Debug)]
+struct Transfer {
+    field: Field,
+    done: Cycles,
+}
+
+enum Engine {
+    Bit(BitEngine),
+    Word(WordEngine),
+}
+
+impl Engine {
+    fn get(&self) -> &dyn PixelEngine {
+        match self {
+            Engine::Bit(e) => e,
+            Engine::Word(e) => e,
+        }
+    }
+    fn get_mut(&mut self) -> &mut dyn PixelEngine {
+        match self {
+            Engine::Bit(e) => e,
+            Engine::Word(e) => e,
+        }
+    }
+}
+
+/// One Renderer board.
+pub struct Board {
+    cfg: RendererConfig,
+    fidelity: Fidelity,
+    geometry: Geometry,
+    word_bits: u32,
+    engine: Engine,
+    origin: (u32, u32),
+    now: Cycles,
+    backing_store_free: Cycles,
+    in_flight: Vec<Transfer>,
+    /// Backing store, allocated a block at a time on first save: block -> block_bits planes.
+    backing_store: BTreeMap<u32, Vec<u64>>,
+    stats: BoardStats,
+}
+
+impl Board {
+    /// A board of `cfg` (already validated by `pxpl5_config`) whose readback packs ring words of
+    /// `ring_word_bits` bits.
+    pub fn new(cfg: &RendererConfig, ring_word_bits: u32, fidelity: Fidelity) -> Board {
+        let geometry = Geometry::new(cfg.width, cfg.height);
+        let flags = cfg.flag_registers as usize;
+        let engine = match fidelity {
+            Fidelity::Bit => Engine::Bit(BitEngine::new(geometry, cfg.pixel_memory_bits, flags)),
+            Fidelity::Word => {
+                Engine::Word(WordEngine::new(geometry, cfg.pixel_memory_bits, flags))
+            }
+        };
+        Board {
+            cfg: cfg.clone(),
+            fidelity,
+            geometry,
+            word_bits: ring_word_bits,
+            engine,
+            origin: (0, 0),
+            now: Cycles::ZERO,
+            backing_store_free: Cycles::ZERO,
+            in_flight: Vec::new(),
+            backing_store: BTreeMap::new(),
+            stats: BoardStats::default(),
+        }
+    }
+
+    pub fn fidelity(&self) -> Fidelity {
+        self.fidelity
+    }
+
+    pub fn config(&self) -> &RendererConfig {
+        &self.cfg
+    }
+
+    /// The cycle at which the board is free for its next command.
+    pub fn now(&self) -> Cycles {
+        self.now
+    }
+
+    /// Let the board sit idle until `t` (the machine's scheduler does this when no command is
+    /// waiting); never moves time back.
+    pub fn idle_until(&mut self, t: Cycles) {
+        self.now = self.now.max(t);
+    }
+
+    pub fn stats(&self) -> &BoardStats {
+        &self.stats
+    }
+
+    /// Execute one command: validate it, wait for interlocks, do the pixel work, advance time.
+    pub fn execute(&mut self, cmd: &Command) -> Result<Executed, CommandError> {
+        self.validate(cmd)?;
+        let kind = cmd.kind();
+        let cost = cycle_cost(cmd, &self.cfg);
+
+        // Backing-store interlock: wait for transfers touching this command's fields (a fence
+        // waits for all of them).
+        let ready = self
+            .in_flight
+            .iter()
+            .filter(|t| matches!(cmd, Command::Fence) || cmd.fields().iter().any(|f| f.overlaps(t.field)))
+            .map(|t| t.done)
+            .max()
+            .unwrap_or(Cycles::ZERO);
+        let start = self.now.max(ready);
+        let stall = start - self.now;
+        let end = start + cost;
+        self.in_flight.retain(|t| t.done > start);
+
+        let mut readback = None;
+        self.apply(cmd, end, &mut readback);
+
+        self.now = end;
+        self.stats.commands += 1;
+        self.stats.busy += cost;
+        self.stats.stall += stall;
+        let k = self.stats.by_kind.entry(kind).or_default();
+        k.count += 1;
+        k.cycles += cost.0;
+        Ok(Executed {
+            start,
+            end,
+            stall,
+            readback,
+        })
+    }
+
+    /// The pixel (or board-state) effect of a validated command that ends at cycle `end`.
+    fn apply(&mut self, cmd: &Command, end: Cycles, readback: &mut Option<ReadbackWords>) {
+        let gated = self.engine.get().registers().active_words(None);
+        match *cmd {
+            Command::SetOrigin { x, y } => self.origin = (x, y),
+            Command::Logic { dst, a, b, op } => self.engine.get_mut().registers_mut().logic(dst, a, b, op),
+            Command::QeeSign {
+                ref expr,
+                window,
+                dst,
+                combine,
+            } => {
+                let active = self.engine.get().registers().active_words(enable_write(dst, combine));
+                let s = Streams::new(expr, self.origin, self.geometry.width, self.geometry.height);
+                self.engine.get_mut().qee(&s, window, QeeSink::Sign { dst, combine }, &active);
+            }
+            Command::QeeStore {
+                ref expr,
+                window,
+                dst,
+            } => {
+                let s = Streams::new(expr, self.origin, self.geometry.width, self.geometry.height);
+                self.engine.get_mut().qee(&s, window, QeeSink::Store { dst }, &gated);
+            }
+            Command::QeeCompare {
+                ref expr,
+                window,
+                field,
+                cmp,
+                dst,
+                combine,
+            } => {
+                let active = self.engine.get().registers().active_words(enable_write(dst, combine));
+                let s = Streams::new(expr, self.origin, self.geometry.width, self.geometry.height);
+                let sink = QeeSink::Compare {
+                    field,
+                    cmp,
+                    dst,
+                    combine,
+                };
+                self.engine.get_mut().qee(&s, window, sink, &active);
+            }
+            Command::QeeAdd {
+                ref expr,
+                window,
+                dst,
+            } => {
+                let s = Streams::new(expr, self.origin, self.geometry.width, self.geometry.height);
+                self.engine.get_mut().qee(&s, window, QeeSink::Add { dst }, &gated);
+            }
+            Command::WriteConst { dst, value } => self.engine.get_mut().write_const(dst, value, &gated),
+            Command::Copy { dst, src } => self.engine.get_mut().copy(dst, src, &gated),
+            Command::Add { dst, a, b } => self.engine.get_mut().add_sub(dst, a, b, false, &gated),
+            Command::Sub { dst, a, b } => self.engine.get_mut().add_sub(dst, a, b, true, &gated),
+            Command::Compare {
+                a,
+                b,
+                cmp,
+                dst,
+                combine,
+            } => {
+                let active = self.engine.get().registers().active_words(enable_write(dst, combine));
+                self.engine.get_mut().compare(a, b, cmp, dst, combine, &active);
+            }
+            Command::MulConst { dst, src, k, k_bits } => {
+                self.engine.get_mut().mul_const(dst, src, k, k_bits, &gated)
+            }
+            Command::Save { field, block } => {
+                // The data are copied at issue: the interlock keeps every later access to the
+                // field behind the transfer's end, so no command can see the difference.
+                let planes = self.engine.get().read_planes(field);
+                let words = self.geometry.words;
+                let block_bits = self.cfg.backing_store.block_bits as usize;
+                for (i, chunk) in planes.chunks(block_bits * words).enumerate() {
+                    let stored = self
+                        .backing_store
+                        .entry(block + i as u32)
+                        .or_insert_with(|| vec![0; block_bits * words]);
+                    stored[..chunk.len()].copy_from_slice(chunk);
+                }
+                self.start_transfer(field, end);
+            }
+            Command::Load { field, block } => {
+                let words = self.geometry.words;
+                let block_bits = self.cfg.backing_store.block_bits as usize;
+                let mut planes = vec![0u64; field.bits as usize * words];
+                for (i, chunk) in planes.chunks_mut(block_bits * words).enumerate() {
+                    // A block never saved reads as zeros (the simulator's definition of VRAM
+                    // never written).
+                    if let Some(stored) = self.backing_store.get(&(block + i as u32)) {
+                        chunk.copy_from_slice(&stored[..chunk.len()]);
+                    }
+                }
+                self.engine.get_mut().write_planes(field, &planes);
+                self.start_transfer(field, end);
+            }
+            Command::Fence => {}
+            Command::Readback { field, rect, dest } => {
+                let values = self.engine.get().read_values(field, rect);
+                *readback = Some(ReadbackWords {
+                    dest,
+                    words: pack(&values, field.bits, self.word_bits),
+                });
+            }
+        }
+    }
+
+    /// Queue a background transfer of `field` on the backing-store engine, issued at `issued`.
+    fn start_transfer(&mut self, field: Field, issued: Cycles) {
+        let start = issued.max(self.backing_store_free);
+        let busy = backing_store_cycles(field, &self.cfg);
+        let done = start + busy;
+        self.backing_store_free = done;
+        self.stats.backing_store_busy += busy;
+        self.in_flight.push(Transfer { field, done });
+    }
+
+    fn validate(&self, cmd: &Command) -> Result<(), CommandError> {
+        let kind = cmd.kind();
+        let memory = self.cfg.pixel_memory_bits;
+        for f in cmd.fields() {
+            if !(1..=64).contains(&f.bits) {
+                return Err(CommandError::FieldWidth { kind, bits: f.bits });
+            }
+            if f.end() > memory {
+                return Err(CommandError::FieldOutside {
+                    kind,
+                    offset: f.offset,
+                    bits: f.bits,
+                    memory,
+                });
+            }
+        }
+        let fields = cmd.fields();
+        for (i, a) in fields.iter().enumerate() {
+            for b in &fields[i + 1..] {
+                let forbidden = match cmd {
+                    // A shift-and-add multiply reads its source after writing the accumulator.
+                    Command::MulConst { .. } => a.overlaps(*b),
+                    _ => a.overlaps_partially(*b),
+                };
+                if forbidden {
+                    return Err(CommandError::Overlap { kind, a: *a, b: *b });
+                }
+            }
+        }
+        let flags = self.cfg.flag_registers;
+        let check_bit = |b: Bit| match b {
+            Bit::Flag(i) if u32::from(i) >= flags => Err(CommandError::NoSuchFlag {
+                kind,
+                flag: i,
+                flags,
+            }),
+            _ => Ok(()),
+        };
+        if let Some((expr, window)) = cmd.qee() {
+            let bits = self.cfg.qee.coefficient_format.total_bits();
+            let (lo, hi) = (-(1i64 << (bits - 1)), (1i64 << (bits - 1)) - 1);
+            for (i, raw) in expr.raw().into_iter().enumerate() {
+                if raw < lo || raw > hi {
+                    let name = COEFFICIENT_NAMES[i];
+                    return Err(CommandError::Coefficient {
+                        kind,
+                        name,
+                        raw,
+                        bits,
+                    });
+                }
+            }
+            let max = self.cfg.qee.max_result_bits.min(64);
+            if window.bits == 0 || window.shift + window.bits > max {
+                return Err(CommandError::Window {
+                    kind,
+                    shift: window.shift,
+                    bits: window.bits,
+                    max,
+                });
+            }
+        }
+        match *cmd {
+            Command::SetOrigin { x, y } => {
+                let limit = 1u64 << self.cfg.qee.coordinate_bits;
+                if u64::from(x) + u64::from(self.cfg.width) > limit
+                    || u64::from(y) + u64::from(self.cfg.height) > limit
+                {
+                    return Err(CommandError::Origin {
+                        x,
+                        y,
+                        coordinate_bits: self.cfg.qee.coordinate_bits,
+                    });
+                }
+            }
+            Command::Logic { dst, a, b, .. } => {
+                check_bit(dst)?;
+                check_bit(a)?;
+                check_bit(b)?;
+            }
+            Command::QeeSign { dst, .. } => check_bit(dst)?,
+            Command::QeeStore { window, dst, .. } | Command::QeeAdd { window, dst, .. } => {
+                if window.bits != dst.bits {
+                    return Err(CommandError::WidthMismatch {
+                        kind,
+                        window: window.bits,
+                        field: dst.bits,
+                    });
+                }
+            }
+            Command::QeeCompare {
+                window, field, dst, ..
+            } => {
+                check_bit(dst)?;
+                if window.bits != field.bits {
+                    return Err(CommandError::WidthMismatch {
+                        kind,
+                        window: window.bits,
+                        field: field.bits,
+                    });
+                }
+            }
+            Command::WriteConst { dst, value } => {
+                if value & !crate::qee::mask(dst.bits) != 0 {
+                    return Err(CommandError::Constant {
+                        kind,
+                        value,
+                        bits: dst.bits,
+                    });
+                }
+            }
+            Command::Compare { dst, .. } => check_bit(dst)?,
+            Command::MulConst { k, k_bits, .. } => {
+                let fits = (1..=32).contains(&k_bits)
+                    && k >= -(1i64 << (k_bits - 1))
+                    && k < (1i64 << (k_bits - 1));
+                if !fits {
+                    return Err(CommandError::Multiplier { k, k_bits });
+                }
+            }
+            Command::Save { field, block } | Command::Load { field, block } => {
+                let blocks = self.cfg.backing_store_bits / self.cfg.backing_store.block_bits;
+                let end = block.saturating_add(backing_store_blocks(field, &self.cfg));
+                if end > blocks {
+                    return Err(CommandError::BackingStore {
+                        kind,
+                        first: block,
+                        end,
+                        blocks,
+                    });
+                }
+            }
+            Command::Readback { rect, .. } => {
+                let (w, h) = (self.cfg.width, self.cfg.height);
+                if rect.width == 0
+                    || rect.height == 0
+                    || u64::from(rect.x) + u64::from(rect.width) > u64::from(w)
+                    || u64::from(rect.y) + u64::from(rect.height) > u64::from(h)
+                {
+                    return Err(CommandError::Rect {
+                        rect,
+                        width: w,
+                        height: h,
+                    });
+                }
+            }
+            Command::Copy { .. } | Command::Add { .. } | Command::Sub { .. } | Command::Fence => {}
+        }
+        Ok(())
+    }
+
+    /// The board's state in the canonical form both fidelity levels share.
+    pub fn image(&self) -> BoardImage {
+        let e = self.engine.get();
+        let memory = e.read_planes(Field {
+            offset: 0,
+            bits: self.cfg.pixel_memory_bits.min(64),
+            signed: false,
+        });
+        let mut planes = memory;
+        // read_planes moves at most 64 bits at a time.
+        let mut offset = 64;
+        while offset < self.cfg.pixel_memory_bits {
+            let bits = (self.cfg.pixel_memory_bits - offset).min(64);
+            planes.extend(e.read_planes(Field {
+                offset,
+                bits,
+                signed: false,
+            }));
+            offset += bits;
+        }
+        BoardImage {
+            enable: e.registers().enable.clone(),
+            flags: e.registers().flags.clone(),
+            memory: planes,
+            backing_store: self.backing_store.clone(),
+        }
+    }
+
+    /// Raw values of a field over the whole array, row by row (for tests and pictures).
+    pub fn field_values(&self, field: Field) -> Vec<u64> {
+        let rect = Rect {
+            x: 0,
+            y: 0,
+            width: self.cfg.width,
+            height: self.cfg.height,
+        };
+        self.engine.get().read_values(field, rect)
+    }
+
+    /// One one-bit register of every pixel, row by row.
+    pub fn bit_values(&self, b: Bit) -> Vec<bool> {
+        let regs = self.engine.get().registers();
+        (0..self.geometry.words * 64)
+            .map(|p| (regs.get(b, p / 64) >> (p % 64)) & 1 != 0)
+            .collect()
+    }
+}
+
+/// Which writes to enable a command makes, for [`crate::engine::Registers::active_words`].
+fn enable_write(dst: Bit, combine: crate::LogicOp) -> Option<crate::LogicOp> {
+    match dst {
+        Bit::Enable => Some(combine),
+        Bit::Flag(_) => None,
+    }
+}
+
+/// A board's complete state in canonical bit-plane form: what the fidelity levels must agree on.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BoardImage {
+    pub enable: Vec<u64>,
+    pub flags: Vec<Vec<u64>>,
+    /// Every bit-plane of pixel memory, plane-major.
+    pub memory: Vec<u64>,
+    /// The backing-store blocks ever written.
+    pub backing_store: BTreeMap<u32, Vec<u64>>,
+}
+
+impl BoardImage {
+    /// SHA-256 of the state, hex: enable, flags, memory planes, then each written backing-store
+    /// block with its number, all as little-endian u64 words.
+    pub fn digest(&self) -> String {
+        let mut h = Sha256::new();
+        let mut put = |words: &[u64]| {
+            for w in words {
+                h.update(w.to_le_bytes());
+            }
+        };
+        put(&self.enable);
+        for f in &self.flags {
+            put(f);
+        }
+        put(&self.memory);
+        for (block, planes) in &self.backing_store {
+            put(&[u64::from(*block)]);
+            put(planes);
+        }
+        h.finalize().iter().map(|b| format!("{b:02x}")).collect()
+    }
+}

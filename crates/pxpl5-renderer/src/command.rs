@@ -1,0 +1,315 @@
+//! The IGC command set: what a GP sends a Renderer, and the operands commands name.
+//!
+//! The Image Generation Controller (IGC, [assumed] name and role) turns each command into SIMD
+//! micro-instructions for the 128 x 128 pixel processors and coefficient bit streams for the QEE.
+//! Commands name pixel memory by [`Field`] (a bit offset and a width, as the real machine's
+//! instructions carry addresses) and one-bit registers by [`Bit`].
+//!
+//! **Enable.** Every write to pixel memory or to a flag register happens only at pixels whose
+//! enable register is 1. Writes to the enable register itself are not gated (otherwise a disabled
+//! pixel could never be enabled again). Backing-store transfers and readback move every pixel.
+
+use crate::qee::{QeeExpr, Window};
+
+/// An n-bit field of pixel memory: bits `offset .. offset + bits` of every pixel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Field {
+    pub offset: u32,
+    pub bits: u32,
+    /// Whether arithmetic reads the field as two's complement (sign-extends it) or unsigned.
+    pub signed: bool,
+}
+
+impl Field {
+    pub fn end(self) -> u32 {
+        self.offset + self.bits
+    }
+
+    /// Whether the two fields share any bit.
+    pub fn overlaps(self, other: Field) -> bool {
+        self.offset < other.end() && other.offset < self.end()
+    }
+
+    /// Whether the fields share bits without being the same bits: a bit-serial operation would
+    /// read bits it has already written, so the command set forbids it.
+    pub fn overlaps_partially(self, other: Field) -> bool {
+        self.overlaps(other) && (self.offset != other.offset || self.bits != other.bits)
+    }
+}
+
+/// A one-bit register of every pixel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Bit {
+    /// The enable register.
+    Enable,
+    /// One of the configured flag registers.
+    Flag(u8),
+}
+
+/// Any boolean function of two bits, as its truth table: bit `(a << 1) | b` of the table is the
+/// result for inputs a, b. One ALU step ([assumed] 1 cycle, `cycles.logic`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct LogicOp(pub u8);
+
+impl LogicOp {
+    pub const ZERO: LogicOp = LogicOp(0b0000);
+    pub const ONE: LogicOp = LogicOp(0b1111);
+    pub const AND: LogicOp = LogicOp(0b1000);
+    pub const OR: LogicOp = LogicOp(0b1110);
+    pub const XOR: LogicOp = LogicOp(0b0110);
+    /// a (copy the first input).
+    pub const A: LogicOp = LogicOp(0b1100);
+    /// b (copy the second input).
+    pub const B: LogicOp = LogicOp(0b1010);
+    pub const NOT_B: LogicOp = LogicOp(0b0101);
+    /// a AND NOT b.
+    pub const AND_NOT: LogicOp = LogicOp(0b0100);
+    /// a OR NOT b.
+    pub const OR_NOT: LogicOp = LogicOp(0b1101);
+
+    /// The function applied to 64 pixels at once.
+    #[inline]
+    pub fn apply(self, a: u64, b: u64) -> u64 {
+        let t = self.0;
+        let mut r = 0;
+        if t & 1 != 0 {
+            r |= !a & !b;
+        }
+        if t & 2 != 0 {
+            r |= !a & b;
+        }
+        if t & 4 != 0 {
+            r |= a & !b;
+        }
+        if t & 8 != 0 {
+            r |= a & b;
+        }
+        r
+    }
+
+    /// Whether the result is 0 whenever a is 0: a combine op with this property leaves a pixel
+    /// whose old value is 0 at 0, which lets the engines skip such pixels.
+    pub fn keeps_zero(self) -> bool {
+        self.0 & 0b0011 == 0
+    }
+}
+
+/// A comparison of two values, `lhs cmp rhs`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Cmp {
+    Lt,
+    Le,
+    Gt,
+    Ge,
+    Eq,
+    Ne,
+}
+
+impl Cmp {
+    pub const ALL: [Cmp; 6] = [Cmp::Lt, Cmp::Le, Cmp::Gt, Cmp::Ge, Cmp::Eq, Cmp::Ne];
+
+    /// The result from the two facts a serial subtract yields: lhs < rhs and lhs == rhs.
+    #[inline]
+    pub fn from_lt_eq(self, lt: u64, eq: u64) -> u64 {
+        match self {
+            Cmp::Lt => lt,
+            Cmp::Le => lt | eq,
+            Cmp::Gt => !(lt | eq),
+            Cmp::Ge => !lt,
+            Cmp::Eq => eq,
+            Cmp::Ne => !eq,
+        }
+    }
+
+    pub fn holds(self, lhs: i128, rhs: i128) -> bool {
+        match self {
+            Cmp::Lt => lhs < rhs,
+            Cmp::Le => lhs <= rhs,
+            Cmp::Gt => lhs > rhs,
+            Cmp::Ge => lhs >= rhs,
+            Cmp::Eq => lhs == rhs,
+            Cmp::Ne => lhs != rhs,
+        }
+    }
+}
+
+/// A rectangle of the array: columns `x .. x + width`, rows `y .. y + height`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Rect {
+    pub x: u32,
+    pub y: u32,
+    pub width: u32,
+    pub height: u32,
+}
+
+/// One IGC command. Cycle costs are given by [`crate::cycle_cost`]; effects by the variant docs.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub enum Command {
+    /// Load the region origin: pixel (px, py) of the array has QEE address (x + px, y + py).
+    SetOrigin { x: u32, y: u32 },
+    /// `dst := op(a, b)`.
+    Logic {
+        dst: Bit,
+        a: Bit,
+        b: Bit,
+        op: LogicOp,
+    },
+    /// `dst := combine(dst, W >= 0)`, W the window of the expression read as signed.
+    QeeSign {
+        expr: QeeExpr,
+        window: Window,
+        dst: Bit,
+        combine: LogicOp,
+    },
+    /// `dst := W` (window width equals the field's).
+    QeeStore {
+        expr: QeeExpr,
+        window: Window,
+        dst: Field,
+    },
+    /// `dst := combine(dst, W cmp field)`, W read with the field's signedness (same width).
+    QeeCompare {
+        expr: QeeExpr,
+        window: Window,
+        field: Field,
+        cmp: Cmp,
+        dst: Bit,
+        combine: LogicOp,
+    },
+    /// `dst := dst + W` modulo 2^bits (same width).
+    QeeAdd {
+        expr: QeeExpr,
+        window: Window,
+        dst: Field,
+    },
+    /// `dst := value` (value must fit the field's bits, as raw bits).
+    WriteConst { dst: Field, value: u64 },
+    /// `dst := src`, extended by src's signedness or cut to dst's width.
+    Copy { dst: Field, src: Field },
+    /// `dst := a + b` modulo 2^dst.bits, operands extended by their signedness.
+    Add { dst: Field, a: Field, b: Field },
+    /// `dst := a - b` modulo 2^dst.bits, operands extended by their signedness.
+    Sub { dst: Field, a: Field, b: Field },
+    /// `dst := combine(dst, a cmp b)`, exact whatever the widths and signedness.
+    Compare {
+        a: Field,
+        b: Field,
+        cmp: Cmp,
+        dst: Bit,
+        combine: LogicOp,
+    },
+    /// `dst := src * k` modulo 2^dst.bits; k is a `k_bits`-bit two's-complement constant
+    /// (e.g. the polygon's C'/D' times a per-pixel stored w). dst must not overlap src.
+    MulConst {
+        dst: Field,
+        src: Field,
+        k: i64,
+        k_bits: u32,
+    },
+    /// Copy a field to the backing store, starting at block `block`, in the background.
+    Save { field: Field, block: u32 },
+    /// Copy blocks of the backing store into a field, in the background.
+    Load { field: Field, block: u32 },
+    /// Wait until every backing-store transfer has finished.
+    Fence,
+    /// Send a field of a rectangle of pixels to ring node `dest` as packed ring words
+    /// (see [`crate::readback`] for the packing).
+    Readback { field: Field, rect: Rect, dest: u32 },
+}
+
+impl Command {
+    /// A short stable name of the command kind, for stats and traces.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Command::SetOrigin { .. } => "set_origin",
+            Command::Logic { .. } => "logic",
+            Command::QeeSign { .. } => "qee_sign",
+            Command::QeeStore { .. } => "qee_store",
+            Command::QeeCompare { .. } => "qee_compare",
+            Command::QeeAdd { .. } => "qee_add",
+            Command::WriteConst { .. } => "write_const",
+            Command::Copy { .. } => "copy",
+            Command::Add { .. } => "add",
+            Command::Sub { .. } => "sub",
+            Command::Compare { .. } => "compare",
+            Command::MulConst { .. } => "mul_const",
+            Command::Save { .. } => "save",
+            Command::Load { .. } => "load",
+            Command::Fence => "fence",
+            Command::Readback { .. } => "readback",
+        }
+    }
+
+    /// Enable every pixel.
+    pub fn enable_all() -> Command {
+        Command::Logic {
+            dst: Bit::Enable,
+            a: Bit::Enable,
+            b: Bit::Enable,
+            op: LogicOp::ONE,
+        }
+    }
+
+    /// The fields of pixel memory the command reads or writes (for backing-store interlocks).
+    pub fn fields(&self) -> Vec<Field> {
+        match *self {
+            Command::QeeStore { dst, .. } | Command::QeeAdd { dst, .. } => vec![dst],
+            Command::QeeCompare { field, .. } => vec![field],
+            Command::WriteConst { dst, .. } => vec![dst],
+            Command::Copy { dst, src } | Command::MulConst { dst, src, .. } => vec![dst, src],
+            Command::Add { dst, a, b } | Command::Sub { dst, a, b } => vec![dst, a, b],
+            Command::Compare { a, b, .. } => vec![a, b],
+            Command::Save { field, .. }
+            | Command::Load { field, .. }
+            | Command::Readback { field, .. } => vec![field],
+            Command::SetOrigin { .. }
+            | Command::Logic { .. }
+            | Command::QeeSign { .. }
+            | Command::Fence => vec![],
+        }
+    }
+
+    /// The expression and window of a QEE command.
+    pub fn qee(&self) -> Option<(&QeeExpr, Window)> {
+        match self {
+            Command::QeeSign { expr, window, .. }
+            | Command::QeeStore { expr, window, .. }
+            | Command::QeeCompare { expr, window, .. }
+            | Command::QeeAdd { expr, window, .. } => Some((expr, *window)),
+            _ => None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn logic_tables() {
+        let (a, b) = (0b1100u64, 0b1010u64);
+        assert_eq!(LogicOp::AND.apply(a, b) & 0xF, 0b1000);
+        assert_eq!(LogicOp::OR.apply(a, b) & 0xF, 0b1110);
+        assert_eq!(LogicOp::XOR.apply(a, b) & 0xF, 0b0110);
+        assert_eq!(LogicOp::A.apply(a, b) & 0xF, a);
+        assert_eq!(LogicOp::B.apply(a, b) & 0xF, b);
+        assert_eq!(LogicOp::AND_NOT.apply(a, b) & 0xF, 0b0100);
+        assert_eq!(LogicOp::OR_NOT.apply(a, b) & 0xF, 0b1101);
+        assert_eq!(LogicOp::ONE.apply(a, b), u64::MAX);
+        assert!(LogicOp::AND.keeps_zero() && LogicOp::AND_NOT.keeps_zero());
+        assert!(!LogicOp::OR.keeps_zero() && !LogicOp::B.keeps_zero());
+    }
+
+    #[test]
+    fn overlap() {
+        let f = |offset, bits| Field {
+            offset,
+            bits,
+            signed: false,
+        };
+        assert!(f(0, 8).overlaps(f(7, 2)));
+        assert!(!f(0, 8).overlaps(f(8, 2)));
+        assert!(!f(0, 8).overlaps_partially(f(0, 8)));
+        assert!(f(0, 8).overlaps_partially(f(0, 9)));
+    }
+}

@@ -1,0 +1,268 @@
+//! The `bit` fidelity level, the reference: pixel memory as bit-planes (one u64 holds one bit of 64
+//! pixels) and every multi-bit operation micro-cycle by micro-cycle through one-bit serial adders
+//! with their carries, as the bit-serial pixel processors do.
+//!
+//! The QEE's three streams (x-tree, y-tree, cross stage; see [`crate::qee`]) arrive one bit-plane
+//! per cycle, least significant bit first, and each pixel adds them with two serial adders before
+//! its ALU consumes the sum. A group of 64 pixels is carried through all of a command's
+//! micro-cycles before the next group (the groups are independent, so the order of the loops
+//! changes nothing but the host's cache use).
+
+use super::{Geometry, PixelEngine, QeeSink, Registers, transpose64};
+use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
+use crate::qee::{Streams, Window};
+
+/// Bit-plane pixel memory and the shared one-bit registers.
+pub struct BitEngine {
+    geometry: Geometry,
+    /// `memory_bits` planes of `geometry.words` words, plane-major.
+    planes: Vec<u64>,
+    regs: Registers,
+}
+
+/// Full-adder sum and carry on 64 pixels.
+#[inline(always)]
+fn full_add(a: u64, b: u64, c: u64) -> (u64, u64) {
+    let t = a ^ b;
+    (t ^ c, (a & b) | (c & t))
+}
+
+impl BitEngine {
+    pub fn new(geometry: Geometry, memory_bits: u32, flag_count: usize) -> BitEngine {
+        BitEngine {
+            geometry,
+            planes: vec![0; memory_bits as usize * geometry.words],
+            regs: Registers::new(geometry, flag_count),
+        }
+    }
+
+    /// Bit `k` of field `f` for word `w`, extended past the field's top by its signedness.
+    #[inline(always)]
+    fn bit(&self, f: Field, k: u32, w: usize) -> u64 {
+        if k < f.bits {
+            self.planes[(f.offset + k) as usize * self.geometry.words + w]
+        } else if f.signed {
+            self.planes[(f.offset + f.bits - 1) as usize * self.geometry.words + w]
+        } else {
+            0
+        }
+    }
+
+    /// Write bit `k` of field `f` for word `w` where `en` is set.
+    #[inline(always)]
+    fn write(&mut self, f: Field, k: u32, w: usize, v: u64, en: u64) {
+        let p = &mut self.planes[(f.offset + k) as usize * self.geometry.words + w];
+        *p = (*p & !en) | (v & en);
+    }
+
+    /// The 64 planes of the x-tree stream for each column word.
+    fn column_planes(&self, s: &Streams) -> Vec<[u64; 64]> {
+        (0..self.geometry.words_per_row)
+            .map(|cw| {
+                let mut m = [0u64; 64];
+                for (i, v) in m.iter_mut().enumerate() {
+                    *v = s.col[cw * 64 + i] as u64;
+                }
+                transpose64(&mut m);
+                m
+            })
+            .collect()
+    }
+}
+
+impl PixelEngine for BitEngine {
+    fn registers(&self) -> &Registers {
+        &self.regs
+    }
+
+    fn registers_mut(&mut self) -> &mut Registers {
+        &mut self.regs
+    }
+
+    fn qee(&mut self, s: &Streams, window: Window, sink: QeeSink, active: &[u32]) {
+        let cols = self.column_planes(s);
+        let cycles = window.delivered_bits();
+        let mut cross = [0u64; 64];
+        for &w in active {
+            let w = w as usize;
+            let (py, px0) = self.geometry.word_origin(w);
+            let col = &cols[px0 / 64];
+            let row = s.row[py] as u64;
+            if s.cross {
+                for (i, v) in cross.iter_mut().enumerate() {
+                    *v = s.cross_at(px0 + i, py) as u64;
+                }
+                transpose64(&mut cross);
+            }
+            let en = self.regs.enable[w];
+            // Carries of the pixels' two stream adders and of the ALU.
+            let (mut c1, mut c2) = (0u64, 0u64);
+            let mut alu_carry = match sink {
+                // lhs - rhs = lhs + !rhs + 1.
+                QeeSink::Compare { .. } => u64::MAX,
+                _ => 0,
+            };
+            let mut differs = 0u64;
+            let mut last = 0u64;
+            for j in 0..cycles {
+                let row_bit = ((row >> j) & 1).wrapping_neg();
+                let (s1, n1) = full_add(col[j as usize], row_bit, c1);
+                c1 = n1;
+                let v = if s.cross {
+                    let (s2, n2) = full_add(s1, cross[j as usize], c2);
+                    c2 = n2;
+                    s2
+                } else {
+                    s1
+                };
+                if j < window.shift {
+                    continue;
+                }
+                let k = j - window.shift;
+                match sink {
+                    QeeSink::Sign { .. } => last = v,
+                    QeeSink::Store { dst } => self.write(dst, k, w, v, en),
+                    QeeSink::Add { dst } => {
+                        let (sum, c) = full_add(self.bit(dst, k, w), v, alu_carry);
+                        alu_carry = c;
+                        self.write(dst, k, w, sum, en);
+                    }
+                    QeeSink::Compare { field, .. } => {
+                        let r = self.bit(field, k, w);
+                        let (d, c) = full_add(v, !r, alu_carry);
+                        alu_carry = c;
+                        differs |= v ^ r;
+                        last = d;
+                        if k == window.bits - 1 {
+                            // One more ALU cycle on the extension bits (covered by alu_setup):
+                            // the difference needs bits + 1 bits to keep its sign.
+                            let ext = if field.signed { v } else { 0 };
+                            let rext = if field.signed { r } else { 0 };
+                            let (d, _) = full_add(ext, !rext, alu_carry);
+                            last = d;
+                        }
+                    }
+                }
+            }
+            match sink {
+                QeeSink::Sign { dst, combine } => self.regs.combine(dst, w, !last, combine),
+                QeeSink::Compare {
+                    cmp, dst, combine, ..
+                } => self
+                    .regs
+                    .combine(dst, w, cmp.from_lt_eq(last, !differs), combine),
+                QeeSink::Store { .. } | QeeSink::Add { .. } => {}
+            }
+        }
+    }
+
+    fn write_const(&mut self, dst: Field, value: u64, active: &[u32]) {
+        for &w in active {
+            let w = w as usize;
+            let en = self.regs.enable[w];
+            for k in 0..dst.bits {
+                self.write(dst, k, w, ((value >> k) & 1).wrapping_neg(), en);
+            }
+        }
+    }
+
+    fn copy(&mut self, dst: Field, src: Field, active: &[u32]) {
+        for &w in active {
+            let w = w as usize;
+            let en = self.regs.enable[w];
+            for k in 0..dst.bits {
+                let v = self.bit(src, k, w);
+                self.write(dst, k, w, v, en);
+            }
+        }
+    }
+
+    fn add_sub(&mut self, dst: Field, a: Field, b: Field, subtract: bool, active: &[u32]) {
+        let invert = if subtract { u64::MAX } else { 0 };
+        for &w in active {
+            let w = w as usize;
+            let en = self.regs.enable[w];
+            let mut carry = invert;
+            for k in 0..dst.bits {
+                let (s, c) = full_add(self.bit(a, k, w), self.bit(b, k, w) ^ invert, carry);
+                carry = c;
+                self.write(dst, k, w, s, en);
+            }
+        }
+    }
+
+    fn compare(&mut self, a: Field, b: Field, cmp: Cmp, dst: Bit, combine: LogicOp, active: &[u32]) {
+        // Both operands extended to max + 2 bits: their difference cannot overflow there.
+        let width = a.bits.max(b.bits) + 2;
+        for &w in active {
+            let w = w as usize;
+            let mut carry = u64::MAX;
+            let mut differs = 0u64;
+            let mut d = 0u64;
+            for k in 0..width {
+                let (x, y) = (self.bit(a, k, w), self.bit(b, k, w));
+                differs |= x ^ y;
+                let (s, c) = full_add(x, !y, carry);
+                carry = c;
+                d = s;
+            }
+            self.regs.combine(dst, w, cmp.from_lt_eq(d, !differs), combine);
+        }
+    }
+
+    fn mul_const(&mut self, dst: Field, src: Field, k: i64, k_bits: u32, active: &[u32]) {
+        // Shift and add: for each bit j of the two's-complement constant, add (or, for its sign
+        // bit, subtract) src << j into an accumulator of dst's width, then store it where enabled.
+        let n = dst.bits;
+        let mut acc = [0u64; 64];
+        for &w in active {
+            let w = w as usize;
+            acc[..n as usize].fill(0);
+            for j in 0..k_bits.min(n) {
+                if (k >> j) & 1 == 0 {
+                    continue;
+                }
+                let negative = j == k_bits - 1;
+                let invert = if negative { u64::MAX } else { 0 };
+                let mut carry = invert;
+                for t in j..n {
+                    let (s, c) = full_add(acc[t as usize], self.bit(src, t - j, w) ^ invert, carry);
+                    carry = c;
+                    acc[t as usize] = s;
+                }
+            }
+            let en = self.regs.enable[w];
+            for t in 0..n {
+                self.write(dst, t, w, acc[t as usize], en);
+            }
+        }
+    }
+
+    fn read_planes(&self, field: Field) -> Vec<u64> {
+        let words = self.geometry.words;
+        let start = field.offset as usize * words;
+        self.planes[start..start + field.bits as usize * words].to_vec()
+    }
+
+    fn write_planes(&mut self, field: Field, planes: &[u64]) {
+        let words = self.geometry.words;
+        let start = field.offset as usize * words;
+        self.planes[start..start + field.bits as usize * words].copy_from_slice(planes);
+    }
+
+    fn read_values(&self, field: Field, rect: Rect) -> Vec<u64> {
+        let g = self.geometry;
+        let mut out = Vec::with_capacity((rect.width * rect.height) as usize);
+        for py in rect.y as usize..(rect.y + rect.height) as usize {
+            for px in rect.x as usize..(rect.x + rect.width) as usize {
+                let w = py * g.words_per_row + px / 64;
+                let mut v = 0u64;
+                for k in 0..field.bits {
+                    v |= ((self.bit(field, k, w) >> (px % 64)) & 1) << k;
+                }
+                out.push(v);
+            }
+        }
+        out
+    }
+}

@@ -1,0 +1,222 @@
+//! The pixel work of the Renderer at two fidelity levels, behind one trait.
+//!
+//! [`PixelEngine`] is what a [`Board`](crate::Board) calls once it has validated a command and
+//! charged its cycles: the engines only change pixel state, they never decide time. Both keep the
+//! one-bit registers (enable and flags) the same way, as bit-planes in [`Registers`], because a
+//! one-bit register has no word form to differ in; they differ in pixel memory and arithmetic:
+//!
+//! - [`bit::BitEngine`] (`bit`): pixel memory as 208 bit-planes (one u64 holds one bit of 64
+//!   pixels); every multi-bit operation runs micro-cycle by micro-cycle through serial adders with
+//!   their carries, and QEE results arrive from the tree's streams one bit-plane per cycle.
+//! - [`word::WordEngine`] (`word`): pixel memory as per-pixel integers; the same semantics by
+//!   integer arithmetic.
+//!
+//! Both skip groups of 64 pixels that a command cannot change (every pixel disabled, for a gated
+//! write): that is a host-side shortcut with no effect on any result, shared by both levels through
+//! [`Registers::active_words`].
+
+pub mod bit;
+pub mod word;
+
+use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
+use crate::qee::{Streams, Window};
+
+/// The shape of the array in 64-pixel words: pixel (px, py) is bit px % 64 of word
+/// py * words_per_row + px / 64.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Geometry {
+    pub width: usize,
+    pub height: usize,
+    pub words_per_row: usize,
+    pub words: usize,
+}
+
+impl Geometry {
+    pub fn new(width: u32, height: u32) -> Geometry {
+        let words_per_row = (width as usize) / 64;
+        Geometry {
+            width: width as usize,
+            height: height as usize,
+            words_per_row,
+            words: words_per_row * height as usize,
+        }
+    }
+
+    /// Row and first column of word `w`.
+    #[inline]
+    pub fn word_origin(&self, w: usize) -> (usize, usize) {
+        (w / self.words_per_row, (w % self.words_per_row) * 64)
+    }
+}
+
+/// The enable register and the flag registers of every pixel, as bit-planes.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Registers {
+    pub enable: Vec<u64>,
+    pub flags: Vec<Vec<u64>>,
+}
+
+impl Registers {
+    /// All pixels enabled (the state at power-up is undefined on the real board; the simulator
+    /// defines it so that runs are reproducible), all flags 0.
+    pub fn new(geometry: Geometry, flag_count: usize) -> Registers {
+        Registers {
+            enable: vec![u64::MAX; geometry.words],
+            flags: vec![vec![0; geometry.words]; flag_count],
+        }
+    }
+
+    #[inline]
+    pub fn get(&self, b: Bit, w: usize) -> u64 {
+        match b {
+            Bit::Enable => self.enable[w],
+            Bit::Flag(i) => self.flags[i as usize][w],
+        }
+    }
+
+    /// `dst := combine(dst, value)` for the 64 pixels of word `w`, gated by enable unless `dst` is
+    /// the enable register itself.
+    #[inline]
+    pub fn combine(&mut self, dst: Bit, w: usize, value: u64, combine: LogicOp) {
+        match dst {
+            Bit::Enable => self.enable[w] = combine.apply(self.enable[w], value),
+            Bit::Flag(i) => {
+                let en = self.enable[w];
+                let old = self.flags[i as usize][w];
+                self.flags[i as usize][w] = (old & !en) | (combine.apply(old, value) & en);
+            }
+        }
+    }
+
+    /// `dst := op(a, b)`: one ALU step on every pixel.
+    pub fn logic(&mut self, dst: Bit, a: Bit, b: Bit, op: LogicOp) {
+        for w in 0..self.enable.len() {
+            let v = op.apply(self.get(a, w), self.get(b, w));
+            self.combine(dst, w, v, LogicOp::B);
+        }
+    }
+
+    /// The words a command can change: where some pixel is enabled, when its writes are gated
+    /// (memory and flags) or when it combines into enable with an op that keeps 0 at 0; every word
+    /// otherwise.
+    pub fn active_words(&self, enable_write: Option<LogicOp>) -> Vec<u32> {
+        match enable_write {
+            Some(op) if !op.keeps_zero() => (0..self.enable.len() as u32).collect(),
+            _ => (0..self.enable.len() as u32)
+                .filter(|&w| self.enable[w as usize] != 0)
+                .collect(),
+        }
+    }
+}
+
+/// Where a QEE result goes.
+#[derive(Clone, Copy, Debug)]
+pub enum QeeSink {
+    Sign {
+        dst: Bit,
+        combine: LogicOp,
+    },
+    Store {
+        dst: Field,
+    },
+    Compare {
+        field: Field,
+        cmp: Cmp,
+        dst: Bit,
+        combine: LogicOp,
+    },
+    Add {
+        dst: Field,
+    },
+}
+
+/// The pixel work of one fidelity level. Callers have validated every operand (fields inside
+/// memory and not partially overlapping, widths matching, flags existing).
+pub trait PixelEngine {
+    fn registers(&self) -> &Registers;
+    fn registers_mut(&mut self) -> &mut Registers;
+    /// A QEE command: the tree's streams, the window the pixels use, and where it goes.
+    fn qee(&mut self, streams: &Streams, window: Window, sink: QeeSink, active: &[u32]);
+    fn write_const(&mut self, dst: Field, value: u64, active: &[u32]);
+    fn copy(&mut self, dst: Field, src: Field, active: &[u32]);
+    fn add_sub(&mut self, dst: Field, a: Field, b: Field, subtract: bool, active: &[u32]);
+    fn compare(&mut self, a: Field, b: Field, cmp: Cmp, dst: Bit, combine: LogicOp, active: &[u32]);
+    fn mul_const(&mut self, dst: Field, src: Field, k: i64, k_bits: u32, active: &[u32]);
+    /// The field of every pixel as bit-planes (plane-major, `field.bits * words` words).
+    fn read_planes(&self, field: Field) -> Vec<u64>;
+    /// Overwrite the field of every pixel (not gated) from bit-planes.
+    fn write_planes(&mut self, field: Field, planes: &[u64]);
+    /// The field's raw bits for the pixels of `rect`, row by row.
+    fn read_values(&self, field: Field, rect: Rect) -> Vec<u64>;
+}
+
+/// Sign- or zero-extend the raw `bits`-bit value of a field to 64 bits.
+#[inline]
+pub fn extend(raw: u64, bits: u32, signed: bool) -> u64 {
+    if signed && bits < 64 {
+        let s = 64 - bits;
+        (((raw << s) as i64) >> s) as u64
+    } else {
+        raw
+    }
+}
+
+/// The value of a field's raw bits as an exact integer.
+#[inline]
+pub fn value_of(raw: u64, bits: u32, signed: bool) -> i128 {
+    if signed {
+        extend(raw, bits, true) as i64 as i128
+    } else {
+        raw as i128
+    }
+}
+
+/// Transpose a 64 x 64 bit matrix in place: afterwards bit i of `m[j]` is what bit j of `m[i]`
+/// was. Used to turn 64 stream values into 64 bit-planes (recursive block swaps, 6 rounds).
+pub fn transpose64(m: &mut [u64; 64]) {
+    let mut s = 32;
+    let mut mask: u64 = 0x0000_0000_FFFF_FFFF;
+    while s != 0 {
+        let mut k = 0;
+        while k < 64 {
+            for i in k..k + s {
+                let t = ((m[i] >> s) ^ m[i + s]) & mask;
+                m[i] ^= t << s;
+                m[i + s] ^= t;
+            }
+            k += 2 * s;
+        }
+        s >>= 1;
+        mask ^= mask << s;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn transpose_matches_the_naive_one() {
+        let mut m = [0u64; 64];
+        let mut x = 0x9E37_79B9_7F4A_7C15u64;
+        for v in m.iter_mut() {
+            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            *v = x;
+        }
+        let orig = m;
+        transpose64(&mut m);
+        for i in 0..64 {
+            for j in 0..64 {
+                assert_eq!((m[j] >> i) & 1, (orig[i] >> j) & 1, "bit ({i}, {j})");
+            }
+        }
+    }
+
+    #[test]
+    fn extension() {
+        assert_eq!(extend(0b101, 3, true), (-3i64) as u64);
+        assert_eq!(extend(0b101, 3, false), 5);
+        assert_eq!(value_of(u64::MAX, 64, false), u64::MAX as i128);
+        assert_eq!(value_of(u64::MAX, 64, true), -1);
+    }
+}

@@ -1,0 +1,241 @@
+//! The `word` fidelity level: pixel memory as per-pixel integers, operations as integer arithmetic
+//! with exactly the semantics of the bit-serial level (proven equal by property tests).
+//!
+//! Memory is stored as lanes of 64 bits: lane k holds bits 64k .. 64k + 63 of every pixel
+//! (structure of arrays, so a field's loop walks one or two contiguous vectors).
+
+use super::{Geometry, PixelEngine, QeeSink, Registers, extend, value_of};
+use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
+use crate::qee::{Streams, Window, mask};
+
+/// Per-pixel integer pixel memory and the shared one-bit registers.
+pub struct WordEngine {
+    geometry: Geometry,
+    lanes: Vec<Vec<u64>>,
+    regs: Registers,
+}
+
+/// Where a field's bits sit in the lanes.
+#[derive(Clone, Copy)]
+struct Access {
+    lane: usize,
+    shift: u32,
+    bits: u32,
+    mask: u64,
+}
+
+impl Access {
+    fn of(f: Field) -> Access {
+        Access {
+            lane: (f.offset / 64) as usize,
+            shift: f.offset % 64,
+            bits: f.bits,
+            mask: mask(f.bits),
+        }
+    }
+
+    #[inline]
+    fn straddles(self) -> bool {
+        self.shift + self.bits > 64
+    }
+}
+
+impl WordEngine {
+    pub fn new(geometry: Geometry, memory_bits: u32, flag_count: usize) -> WordEngine {
+        let lanes = memory_bits.div_ceil(64) as usize;
+        WordEngine {
+            geometry,
+            lanes: vec![vec![0; geometry.words * 64]; lanes],
+            regs: Registers::new(geometry, flag_count),
+        }
+    }
+
+    #[inline]
+    fn get(&self, a: Access, p: usize) -> u64 {
+        let lo = self.lanes[a.lane][p] >> a.shift;
+        if a.straddles() {
+            (lo | (self.lanes[a.lane + 1][p] << (64 - a.shift))) & a.mask
+        } else {
+            lo & a.mask
+        }
+    }
+
+    #[inline]
+    fn set(&mut self, a: Access, p: usize, v: u64) {
+        let v = v & a.mask;
+        let lane = &mut self.lanes[a.lane][p];
+        *lane = (*lane & !(a.mask << a.shift)) | (v << a.shift);
+        if a.straddles() {
+            let hi_bits = a.shift + a.bits - 64;
+            let hi_mask = mask(hi_bits);
+            let lane = &mut self.lanes[a.lane + 1][p];
+            *lane = (*lane & !hi_mask) | (v >> (64 - a.shift));
+        }
+    }
+
+    /// Apply `f(pixel) -> new raw value` to a field at the enabled pixels of the active words.
+    #[inline]
+    fn update(&mut self, dst: Field, active: &[u32], mut f: impl FnMut(&Self, usize) -> u64) {
+        let a = Access::of(dst);
+        for &w in active {
+            let w = w as usize;
+            let en = self.regs.enable[w];
+            for i in 0..64 {
+                if (en >> i) & 1 != 0 {
+                    let p = w * 64 + i;
+                    let v = f(self, p);
+                    self.set(a, p, v);
+                }
+            }
+        }
+    }
+
+    /// Compute one result bit per pixel of the active words and combine it into `dst`.
+    #[inline]
+    fn combine_bits(
+        &mut self,
+        dst: Bit,
+        combine: LogicOp,
+        active: &[u32],
+        mut f: impl FnMut(&Self, usize) -> bool,
+    ) {
+        for &w in active {
+            let w = w as usize;
+            let mut word = 0u64;
+            for i in 0..64 {
+                word |= (f(self, w * 64 + i) as u64) << i;
+            }
+            self.regs.combine(dst, w, word, combine);
+        }
+    }
+
+    /// Pixel index p's (px, py).
+    #[inline]
+    fn xy(&self, p: usize) -> (usize, usize) {
+        let w = p / 64;
+        let (py, px0) = self.geometry.word_origin(w);
+        (px0 + p % 64, py)
+    }
+}
+
+impl PixelEngine for WordEngine {
+    fn registers(&self) -> &Registers {
+        &self.regs
+    }
+
+    fn registers_mut(&mut self) -> &mut Registers {
+        &mut self.regs
+    }
+
+    fn qee(&mut self, s: &Streams, window: Window, sink: QeeSink, active: &[u32]) {
+        let cut = |e: &Self, p: usize| {
+            let (px, py) = e.xy(p);
+            window.cut(s.value(px, py))
+        };
+        match sink {
+            QeeSink::Sign { dst, combine } => {
+                let top = window.bits - 1;
+                self.combine_bits(dst, combine, active, |e, p| (cut(e, p) >> top) & 1 == 0)
+            }
+            QeeSink::Store { dst } => self.update(dst, active, cut),
+            QeeSink::Compare {
+                field,
+                cmp,
+                dst,
+                combine,
+            } => {
+                let a = Access::of(field);
+                self.combine_bits(dst, combine, active, |e, p| {
+                    let lhs = value_of(cut(e, p), field.bits, field.signed);
+                    let rhs = value_of(e.get(a, p), field.bits, field.signed);
+                    cmp.holds(lhs, rhs)
+                })
+            }
+            QeeSink::Add { dst } => {
+                let a = Access::of(dst);
+                self.update(dst, active, |e, p| e.get(a, p).wrapping_add(cut(e, p)))
+            }
+        }
+    }
+
+    fn write_const(&mut self, dst: Field, value: u64, active: &[u32]) {
+        self.update(dst, active, |_, _| value)
+    }
+
+    fn copy(&mut self, dst: Field, src: Field, active: &[u32]) {
+        let s = Access::of(src);
+        self.update(dst, active, |e, p| extend(e.get(s, p), src.bits, src.signed))
+    }
+
+    fn add_sub(&mut self, dst: Field, a: Field, b: Field, subtract: bool, active: &[u32]) {
+        let (aa, ba) = (Access::of(a), Access::of(b));
+        self.update(dst, active, |e, p| {
+            let x = extend(e.get(aa, p), a.bits, a.signed);
+            let y = extend(e.get(ba, p), b.bits, b.signed);
+            if subtract {
+                x.wrapping_sub(y)
+            } else {
+                x.wrapping_add(y)
+            }
+        })
+    }
+
+    fn compare(&mut self, a: Field, b: Field, cmp: Cmp, dst: Bit, combine: LogicOp, active: &[u32]) {
+        let (aa, ba) = (Access::of(a), Access::of(b));
+        self.combine_bits(dst, combine, active, |e, p| {
+            cmp.holds(
+                value_of(e.get(aa, p), a.bits, a.signed),
+                value_of(e.get(ba, p), b.bits, b.signed),
+            )
+        })
+    }
+
+    fn mul_const(&mut self, dst: Field, src: Field, k: i64, _k_bits: u32, active: &[u32]) {
+        let s = Access::of(src);
+        self.update(dst, active, |e, p| {
+            extend(e.get(s, p), src.bits, src.signed).wrapping_mul(k as u64)
+        })
+    }
+
+    fn read_planes(&self, field: Field) -> Vec<u64> {
+        let a = Access::of(field);
+        let words = self.geometry.words;
+        let mut planes = vec![0u64; field.bits as usize * words];
+        for w in 0..words {
+            for i in 0..64 {
+                let v = self.get(a, w * 64 + i);
+                for k in 0..field.bits as usize {
+                    planes[k * words + w] |= ((v >> k) & 1) << i;
+                }
+            }
+        }
+        planes
+    }
+
+    fn write_planes(&mut self, field: Field, planes: &[u64]) {
+        let a = Access::of(field);
+        let words = self.geometry.words;
+        for w in 0..words {
+            for i in 0..64 {
+                let mut v = 0u64;
+                for k in 0..field.bits as usize {
+                    v |= ((planes[k * words + w] >> i) & 1) << k;
+                }
+                self.set(a, w * 64 + i, v);
+            }
+        }
+    }
+
+    fn read_values(&self, field: Field, rect: Rect) -> Vec<u64> {
+        let a = Access::of(field);
+        let g = self.geometry;
+        let mut out = Vec::with_capacity((rect.width * rect.height) as usize);
+        for py in rect.y as usize..(rect.y + rect.height) as usize {
+            for px in rect.x as usize..(rect.x + rect.width) as usize {
+                let p = (py * g.words_per_row + px / 64) * 64 + px % 64;
+                out.push(self.get(a, p));
+            }
+        }
+        out
+    }
+}

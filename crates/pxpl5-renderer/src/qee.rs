@@ -1,0 +1,307 @@
+//! The quadratic expression evaluator (QEE): exact integer semantics of quantised coefficients,
+//! the result window, and the tree's three bit streams.
+//!
+//! Every pixel at address (x, y) (its position in the array plus the region origin) receives
+//!
+//! ```text
+//!     V(x, y) = A x + B y + C + D x^2 + E x y + F y^2
+//! ```
+//!
+//! where A..F are the *raw* integers of the coefficients in the configured
+//! [`FixedFormat`](pxpl5_config::FixedFormat) (value = raw / 2^frac_bits), so V is an exact integer
+//! in units of 2^-frac_bits. Linear expressions are the case D = E = F = 0.
+//!
+//! **The result window (the documented cut rule).** A command asks for `bits` result bits starting
+//! at bit `shift` of V. The tree delivers V bit-serially, least significant bit first, one bit per
+//! Renderer cycle after its pipeline fill; the pixel ignores the first `shift` bits and uses the
+//! next `bits`. The window is therefore `W = (V >> shift) mod 2^bits` (arithmetic shift, i.e.
+//! floor division, then two's-complement wrap): a bit-serial LSB-first machine cannot saturate,
+//! because it has written the low bits before it sees the high ones. Read as signed, W equals
+//! floor(V / 2^shift) whenever that fits in `bits` bits; choosing a window wide enough is the
+//! program's job (its GP knows the coefficients and the region).
+//!
+//! **The tree, as the bit-level model builds it** ([assumed]: the hardware's internal structure is
+//! not published; what is fixed is that each pixel receives its exact value bit-serially,
+//! [lineage]). The QEE is three serial-parallel trees whose outputs each pixel adds with its own
+//! serial adders:
+//! - the x-tree puts `X(x) = A x + D x^2` on every column line;
+//! - the y-tree puts `Y(y) = C + B y + F y^2` on every row line;
+//! - the cross stage puts `Z(x, y) = (E y) x` on every pixel (a per-row x-tree fed with E y);
+//!   only expressions with E != 0 use it.
+//!
+//! So `V = X(x) + Y(y) + Z(x, y)`, which [`Streams`] computes once per command and both fidelity
+//! levels consume: the `word` level adds the three as integers, the `bit` level feeds them through
+//! the pixels' serial adders one bit-plane per cycle.
+
+use pxpl5_config::FixedFormat;
+use thiserror::Error;
+
+/// The six coefficients of a quadratic expression, as raw integers of the QEE's coefficient format
+/// (value = raw / 2^frac_bits of the board's configured format).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct QeeExpr {
+    pub a: i64,
+    pub b: i64,
+    pub c: i64,
+    pub d: i64,
+    pub e: i64,
+    pub f: i64,
+}
+
+/// Names of the coefficients, in the order of [`QeeExpr::raw`], for error messages.
+pub const COEFFICIENT_NAMES: [&str; 6] = ["A", "B", "C", "D", "E", "F"];
+
+/// A coefficient that cannot be represented in the configured format.
+#[derive(Clone, Debug, PartialEq, Error)]
+pub enum QuantiseError {
+    #[error("coefficient {name} is {value}: not a finite number")]
+    NotFinite { name: &'static str, value: f64 },
+    #[error(
+        "coefficient {name} = {value} does not fit the QEE format of {int_bits} integer and \
+         {frac_bits} fractional bits (range {min} .. {max})"
+    )]
+    OutOfRange {
+        name: &'static str,
+        value: f64,
+        int_bits: u32,
+        frac_bits: u32,
+        min: f64,
+        max: f64,
+    },
+}
+
+/// The bits of a result that a command uses: `bits` bits starting at bit `shift` of V.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Window {
+    pub shift: u32,
+    pub bits: u32,
+}
+
+impl Window {
+    /// Cycles the tree needs to deliver this window: every bit up to the window's top.
+    pub fn delivered_bits(self) -> u32 {
+        self.shift + self.bits
+    }
+
+    /// The window of `v`, as raw bits (the low `bits` bits of floor(v / 2^shift)).
+    pub fn cut(self, v: i64) -> u64 {
+        ((v >> self.shift) as u64) & mask(self.bits)
+    }
+}
+
+/// The low `bits` bits set.
+pub fn mask(bits: u32) -> u64 {
+    if bits >= 64 {
+        u64::MAX
+    } else {
+        (1u64 << bits) - 1
+    }
+}
+
+impl QeeExpr {
+    /// The linear expression A x + B y + C, already in raw units.
+    pub fn linear(a: i64, b: i64, c: i64) -> QeeExpr {
+        QeeExpr {
+            a,
+            b,
+            c,
+            ..QeeExpr::default()
+        }
+    }
+
+    /// Quantise real coefficients `[A, B, C, D, E, F]` to `format`, rounding to nearest (halves
+    /// away from zero). An error names the coefficient that is not finite or does not fit.
+    pub fn quantise(coefficients: [f64; 6], format: FixedFormat) -> Result<QeeExpr, QuantiseError> {
+        let scale = (format.frac_bits as f64).exp2();
+        let max_raw = (1i64 << (format.int_bits + format.frac_bits)) - 1;
+        let mut raw = [0i64; 6];
+        for (i, &value) in coefficients.iter().enumerate() {
+            let name = COEFFICIENT_NAMES[i];
+            if !value.is_finite() {
+                return Err(QuantiseError::NotFinite { name, value });
+            }
+            let r = (value * scale).round();
+            if r > max_raw as f64 || r < -(max_raw as f64) - 1.0 {
+                return Err(QuantiseError::OutOfRange {
+                    name,
+                    value,
+                    int_bits: format.int_bits,
+                    frac_bits: format.frac_bits,
+                    min: -((max_raw + 1) as f64) / scale,
+                    max: max_raw as f64 / scale,
+                });
+            }
+            raw[i] = r as i64;
+        }
+        Ok(QeeExpr::from_raw(raw))
+    }
+
+    pub fn from_raw(r: [i64; 6]) -> QeeExpr {
+        QeeExpr {
+            a: r[0],
+            b: r[1],
+            c: r[2],
+            d: r[3],
+            e: r[4],
+            f: r[5],
+        }
+    }
+
+    pub fn raw(&self) -> [i64; 6] {
+        [self.a, self.b, self.c, self.d, self.e, self.f]
+    }
+
+    /// Whether any second-order coefficient is non-zero (costs the quadratic extra cycles).
+    pub fn is_quadratic(&self) -> bool {
+        self.d != 0 || self.e != 0 || self.f != 0
+    }
+
+    /// A bound on |V| over the pixel addresses `origin .. origin + (width, height)`: the sum of
+    /// each coefficient's magnitude times its monomial's largest magnitude there.
+    pub fn bound(&self, origin: (u32, u32), width: u32, height: u32) -> u128 {
+        let xm = u128::from(origin.0 + width.saturating_sub(1));
+        let ym = u128::from(origin.1 + height.saturating_sub(1));
+        let m = |c: i64| u128::from(c.unsigned_abs());
+        m(self.a) * xm
+            + m(self.b) * ym
+            + m(self.c)
+            + m(self.d) * xm * xm
+            + m(self.e) * xm * ym
+            + m(self.f) * ym * ym
+    }
+
+    /// The narrowest window from bit 0 whose signed value holds V everywhere in the region, so a
+    /// sign test there is exact: what a GP program computes before it sends a sign test.
+    pub fn sign_window(&self, origin: (u32, u32), width: u32, height: u32) -> Window {
+        let bound = self.bound(origin, width, height);
+        // Magnitude bits plus the sign bit.
+        let bits = (128 - bound.leading_zeros()) + 1;
+        Window { shift: 0, bits }
+    }
+
+    /// The exact value at pixel address (x, y), in raw units. The board's validation bounds the
+    /// coefficients and addresses so that this cannot overflow (see `pxpl5_config` checks on
+    /// `coefficient_format` and `coordinate_bits`).
+    pub fn eval(&self, x: i64, y: i64) -> i64 {
+        self.a * x + self.b * y + self.c + self.d * x * x + self.e * x * y + self.f * y * y
+    }
+}
+
+/// The three streams of the tree for one command on one board (see the module doc):
+/// `V(px, py) = col[px] + row[py] + e_row[py] * x`, with x = origin_x + px.
+#[derive(Clone, Debug)]
+pub struct Streams {
+    /// X(x) = A x + D x^2 per column of the array.
+    pub col: Vec<i64>,
+    /// Y(y) = C + B y + F y^2 per row of the array.
+    pub row: Vec<i64>,
+    /// E y per row: the cross stage's per-row multiplier; all zero when E = 0.
+    pub e_row: Vec<i64>,
+    /// Pixel address of column 0 (the region origin's x).
+    pub origin_x: i64,
+    /// Whether the cross stage is in use (E != 0).
+    pub cross: bool,
+}
+
+impl Streams {
+    /// The streams of `expr` on a `width` x `height` array whose pixel (0, 0) has address
+    /// `origin`.
+    pub fn new(expr: &QeeExpr, origin: (u32, u32), width: usize, height: usize) -> Streams {
+        let (ox, oy) = (origin.0 as i64, origin.1 as i64);
+        let col = (0..width as i64)
+            .map(|px| {
+                let x = ox + px;
+                expr.a * x + expr.d * x * x
+            })
+            .collect();
+        let row = (0..height as i64)
+            .map(|py| {
+                let y = oy + py;
+                expr.c + expr.b * y + expr.f * y * y
+            })
+            .collect();
+        let e_row = (0..height as i64).map(|py| expr.e * (oy + py)).collect();
+        Streams {
+            col,
+            row,
+            e_row,
+            origin_x: ox,
+            cross: expr.e != 0,
+        }
+    }
+
+    /// The cross term Z at (px, py).
+    #[inline]
+    pub fn cross_at(&self, px: usize, py: usize) -> i64 {
+        self.e_row[py] * (self.origin_x + px as i64)
+    }
+
+    /// V at (px, py): the sum of the three streams.
+    #[inline]
+    pub fn value(&self, px: usize, py: usize) -> i64 {
+        self.col[px] + self.row[py] + self.cross_at(px, py)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const FMT: FixedFormat = FixedFormat {
+        int_bits: 13,
+        frac_bits: 18,
+    };
+
+    #[test]
+    fn quantise_rounds_to_nearest_and_checks_range() {
+        let e = QeeExpr::quantise([1.0, -0.5, 1.0 / 3.0, 0.0, 0.0, 0.0], FMT).unwrap();
+        assert_eq!(e.a, 1 << 18);
+        assert_eq!(e.b, -(1 << 17));
+        assert_eq!(e.c, ((1u64 << 18) as f64 / 3.0).round() as i64);
+        assert!(!e.is_quadratic());
+        let err = QeeExpr::quantise([0.0, 0.0, 0.0, 9000.0, 0.0, 0.0], FMT).unwrap_err();
+        assert!(err.to_string().contains("coefficient D"), "{err}");
+        let err = QeeExpr::quantise([0.0, f64::NAN, 0.0, 0.0, 0.0, 0.0], FMT).unwrap_err();
+        assert!(err.to_string().contains("coefficient B"), "{err}");
+        // The extremes of the format are representable.
+        let max = 8192.0 - 1.0 / 262144.0;
+        assert!(QeeExpr::quantise([max, -8192.0, 0.0, 0.0, 0.0, 0.0], FMT).is_ok());
+    }
+
+    #[test]
+    fn window_is_floor_then_wrap() {
+        let w = Window { shift: 4, bits: 8 };
+        assert_eq!(w.cut(0x1234), 0x23);
+        // floor(-17 / 16) = -2, as 8 bits 0xFE.
+        assert_eq!(w.cut(-17), 0xFE);
+        // Too wide for the window: wraps, never saturates.
+        assert_eq!(w.cut(0x1_0000 + 0x50), 0x05);
+        assert_eq!(Window { shift: 0, bits: 64 }.cut(-1), u64::MAX);
+    }
+
+    #[test]
+    fn streams_sum_to_the_exact_value() {
+        let e = QeeExpr::from_raw([3, -7, 11, 5, -13, 2]);
+        let s = Streams::new(&e, (100, 37), 128, 128);
+        for (px, py) in [(0, 0), (127, 0), (0, 127), (64, 90), (127, 127)] {
+            assert_eq!(
+                s.value(px, py),
+                e.eval(100 + px as i64, 37 + py as i64),
+                "at ({px}, {py})"
+            );
+        }
+        assert!(s.cross);
+    }
+
+    #[test]
+    fn sign_window_holds_every_value() {
+        let e = QeeExpr::from_raw([3, -7, 11, 5, -13, 2]);
+        let w = e.sign_window((0, 0), 128, 128);
+        let half = 1i64 << (w.bits - 1);
+        for (x, y) in [(0, 0), (127, 0), (0, 127), (127, 127)] {
+            let v = e.eval(x, y);
+            assert!(-half <= v && v < half, "{v} outside {} bits", w.bits);
+        }
+        assert_eq!(QeeExpr::default().sign_window((0, 0), 128, 128).bits, 1);
+    }
+}

@@ -1,0 +1,346 @@
+//! Every IGC command: its effect on pixels and its cycle count, asserted together, at both
+//! fidelity levels (each check runs the same commands on a `bit` and a `word` board and requires
+//! identical state).
+
+use pxpl5_config::RendererConfig;
+use pxpl5_renderer::{
+    Bit, Board, Cmp, Command, CommandError, Field, Fidelity, LogicOp, PixelLayout, QeeExpr, Rect,
+    Window, readback,
+};
+
+/// The seed machine's Renderer: 128 x 128, 208 bits, 4 flags, IGC overhead 20, QEE latency 8.
+fn cfg() -> RendererConfig {
+    pxpl5_config::default_config().renderer
+}
+
+/// Both boards, after running `setup`.
+fn boards(setup: &[Command]) -> [Board; 2] {
+    [Fidelity::Bit, Fidelity::Word].map(|f| {
+        let mut b = Board::new(&cfg(), 32, f);
+        for c in setup {
+            b.execute(c).unwrap();
+        }
+        b
+    })
+}
+
+/// Run `cmd` on both levels; assert its cycles (end - start) and that the levels agree; return
+/// the bit board.
+fn check(setup: &[Command], cmd: Command, cycles: u64) -> Board {
+    let [mut bit, mut word] = boards(setup);
+    let eb = bit.execute(&cmd).unwrap();
+    let ew = word.execute(&cmd).unwrap();
+    assert_eq!(eb, ew, "{cmd:?}: bit and word executions differ");
+    assert_eq!((eb.end - eb.start).0, cycles, "{cmd:?}: cycles");
+    assert_eq!(bit.image(), word.image(), "{cmd:?}: bit and word state differ");
+    bit
+}
+
+fn field(offset: u32, bits: u32, signed: bool) -> Field {
+    Field {
+        offset,
+        bits,
+        signed,
+    }
+}
+
+/// Enable only the left half of the board (x < 64), by a linear sign test: 63.5 - x >= 0.
+fn left_half() -> Command {
+    Command::QeeSign {
+        expr: QeeExpr::linear(-2, 0, 127),
+        window: Window { shift: 0, bits: 12 },
+        dst: Bit::Enable,
+        combine: LogicOp::B,
+    }
+}
+
+const W: usize = 128;
+
+#[test]
+fn logic_is_one_cycle_plus_overhead() {
+    let setup = [left_half()];
+    let b = check(
+        &setup,
+        Command::Logic {
+            dst: Bit::Flag(2),
+            a: Bit::Enable,
+            b: Bit::Flag(2),
+            op: LogicOp::OR,
+        },
+        21,
+    );
+    let f = b.bit_values(Bit::Flag(2));
+    // Gated: written only where enabled, and there it is 1.
+    assert!(f[5] && !f[100] && f[W * 77 + 63] && !f[W * 77 + 64]);
+    // Writing enable itself is not gated.
+    let b = check(&setup, Command::enable_all(), 21);
+    assert!(b.bit_values(Bit::Enable).iter().all(|&e| e));
+}
+
+#[test]
+fn qee_sign_costs_latency_plus_window() {
+    // 12-bit window, linear: 20 + 8 + 12.
+    let b = check(&[], left_half(), 40);
+    let e = b.bit_values(Bit::Enable);
+    assert!(e[0] && e[63] && !e[64] && !e[127] && e[W * 127 + 10]);
+    // A quadratic costs the same with quadratic_extra_cycles = 0 [lineage].
+    let circle = QeeExpr::from_raw([128, 128, -(64 * 64 * 2 - 40 * 40), -1, 0, -1]);
+    let b = check(
+        &[],
+        Command::QeeSign {
+            expr: circle,
+            window: Window { shift: 3, bits: 16 },
+            dst: Bit::Flag(0),
+            combine: LogicOp::B,
+        },
+        20 + 8 + 19,
+    );
+    let f = b.bit_values(Bit::Flag(0));
+    for (x, y) in [(64usize, 64usize), (30, 64), (64, 100), (0, 0), (127, 127)] {
+        let v = circle.eval(x as i64, y as i64) >> 3;
+        assert_eq!(f[y * W + x], v >= 0, "({x}, {y}) v = {v}");
+    }
+}
+
+#[test]
+fn qee_store_add_and_compare() {
+    let mut l = PixelLayout::new(208);
+    let z = l.alloc("z", 20, true).unwrap();
+    let expr = QeeExpr::from_raw([3, -5, 1000, 0, 1, 0]);
+    let win = Window { shift: 2, bits: 20 };
+    let setup = [left_half(), Command::SetOrigin { x: 100, y: 200 }];
+    let b = check(
+        &setup,
+        Command::QeeStore {
+            expr,
+            window: win,
+            dst: z,
+        },
+        20 + 8 + 22,
+    );
+    let vals = b.field_values(z);
+    let at = |x: usize, y: usize| win.cut(expr.eval(100 + x as i64, 200 + y as i64));
+    assert_eq!(vals[W * 9 + 7], at(7, 9));
+    assert_eq!(vals[W * 9 + 70], 0, "disabled pixels keep their value");
+
+    let store = Command::QeeStore {
+        expr,
+        window: win,
+        dst: z,
+    };
+    let mut s2 = setup.to_vec();
+    s2.push(store.clone());
+    let b = check(
+        &s2,
+        Command::QeeAdd {
+            expr,
+            window: win,
+            dst: z,
+        },
+        20 + 8 + 22 + 1,
+    );
+    assert_eq!(b.field_values(z)[W * 3 + 1], (2 * at(1, 3)) & 0xF_FFFF);
+
+    // Compare the stored value against an expression one larger: strictly greater everywhere.
+    let bigger = QeeExpr { c: 1004, ..expr };
+    let b = check(
+        &s2,
+        Command::QeeCompare {
+            expr: bigger,
+            window: win,
+            field: z,
+            cmp: Cmp::Gt,
+            dst: Bit::Flag(1),
+            combine: LogicOp::B,
+        },
+        20 + 8 + 22 + 1,
+    );
+    let f = b.bit_values(Bit::Flag(1));
+    assert!(f[W * 50 + 3] && !f[W * 50 + 90]);
+}
+
+#[test]
+fn field_arithmetic() {
+    let (a, b, d) = (field(0, 8, true), field(8, 12, false), field(60, 10, true));
+    let setup = [
+        Command::WriteConst {
+            dst: a,
+            value: 0xF0, // -16
+        },
+        Command::WriteConst { dst: b, value: 700 },
+    ];
+    let board = check(&setup, Command::Add { dst: d, a, b }, 20 + 1 + 10);
+    assert_eq!(board.field_values(d)[0], 684);
+    let board = check(&setup, Command::Sub { dst: d, a, b }, 20 + 1 + 10);
+    assert_eq!(board.field_values(d)[0], (-716i64 as u64) & 0x3FF);
+    let board = check(&setup, Command::Copy { dst: d, src: a }, 20 + 10);
+    assert_eq!(board.field_values(d)[0], 0x3F0, "sign-extended");
+    let board = check(
+        &setup,
+        Command::MulConst {
+            dst: d,
+            src: a,
+            k: -3,
+            k_bits: 3,
+        },
+        20 + 8 * 3,
+    );
+    assert_eq!(board.field_values(d)[0], 48);
+    let board = check(&setup, Command::WriteConst { dst: d, value: 513 }, 20 + 10);
+    assert_eq!(board.field_values(d)[W * W - 1], 513);
+}
+
+#[test]
+fn compare_is_exact_across_widths_and_signedness() {
+    let (a, b) = (field(0, 8, true), field(8, 12, false));
+    for (va, vb) in [(0xF0u64, 700u64), (0x7F, 100), (0x64, 100), (0x00, 0)] {
+        let setup = [
+            Command::WriteConst { dst: a, value: va },
+            Command::WriteConst { dst: b, value: vb },
+        ];
+        let x = ((va as i64) << 56) >> 56;
+        for cmp in Cmp::ALL {
+            let board = check(
+                &setup,
+                Command::Compare {
+                    a,
+                    b,
+                    cmp,
+                    dst: Bit::Flag(3),
+                    combine: LogicOp::B,
+                },
+                20 + 1 + 12,
+            );
+            let expect = cmp.holds(x as i128, vb as i128);
+            assert_eq!(board.bit_values(Bit::Flag(3))[0], expect, "{x} {cmp:?} {vb}");
+        }
+    }
+}
+
+#[test]
+fn backing_store_runs_in_the_background_and_interlocks() {
+    let f = field(10, 40, false);
+    let setup = [Command::WriteConst {
+        dst: f,
+        value: 0x12_3456_789A,
+    }];
+    let [mut bit, mut word] = boards(&setup);
+    for b in [&mut bit, &mut word] {
+        let t0 = b.now().0;
+        let save = b.execute(&Command::Save { field: f, block: 5 }).unwrap();
+        // Foreground: overhead + issue.
+        assert_eq!(save.end.0 - save.start.0, 21);
+        // An unrelated command does not wait.
+        let other = b
+            .execute(&Command::WriteConst {
+                dst: field(100, 4, false),
+                value: 3,
+            })
+            .unwrap();
+        assert_eq!(other.stall.0, 0);
+        // Overwrite the field: waits for the 2-block transfer (2 x 4096 cycles).
+        let over = b
+            .execute(&Command::WriteConst { dst: f, value: 0 })
+            .unwrap();
+        assert_eq!(over.start.0, t0 + 21 + 2 * 4096);
+        assert_eq!(over.stall.0, 2 * 4096 - 24);
+        let load = b.execute(&Command::Load { field: f, block: 5 }).unwrap();
+        assert_eq!(load.stall.0, 0);
+        let fence = b.execute(&Command::Fence).unwrap();
+        assert_eq!(fence.start.0, load.end.0 + 2 * 4096);
+        assert_eq!(b.field_values(f)[777], 0x12_3456_789A);
+        assert_eq!(b.stats().backing_store_busy.0, 4 * 4096);
+    }
+    assert_eq!(bit.image(), word.image());
+}
+
+#[test]
+fn readback_packs_ring_words() {
+    let id = field(0, 16, false);
+    let setup = [
+        Command::QeeStore {
+            expr: QeeExpr::linear(1, 1000, 0),
+            window: Window { shift: 0, bits: 16 },
+            dst: id,
+        },
+    ];
+    let rect = Rect {
+        x: 10,
+        y: 20,
+        width: 5,
+        height: 3,
+    };
+    let b = check(
+        &setup,
+        Command::Readback {
+            field: id,
+            rect,
+            dest: 7,
+        },
+        20 + 16,
+    );
+    let [mut bit, _] = boards(&setup);
+    let r = bit
+        .execute(&Command::Readback {
+            field: id,
+            rect,
+            dest: 7,
+        })
+        .unwrap()
+        .readback
+        .unwrap();
+    assert_eq!(r.dest, 7);
+    assert_eq!(r.words.len(), 8);
+    let px = readback::unpack(&r.words, 16, 32, 15);
+    assert_eq!(px[0], 10 + 20 * 1000);
+    assert_eq!(px[14], 14 + 22 * 1000);
+    drop(b);
+}
+
+#[test]
+fn program_mistakes_are_errors_not_panics() {
+    let [mut b, _] = boards(&[]);
+    let err = |b: &mut Board, c: Command| b.execute(&c).unwrap_err();
+    assert!(matches!(
+        err(&mut b, Command::WriteConst { dst: field(200, 16, false), value: 0 }),
+        CommandError::FieldOutside { .. }
+    ));
+    assert!(matches!(
+        err(&mut b, Command::Add { dst: field(0, 8, false), a: field(4, 8, false), b: field(20, 8, false) }),
+        CommandError::Overlap { .. }
+    ));
+    assert!(matches!(
+        err(&mut b, Command::Logic { dst: Bit::Flag(9), a: Bit::Enable, b: Bit::Enable, op: LogicOp::A }),
+        CommandError::NoSuchFlag { .. }
+    ));
+    assert!(matches!(
+        err(&mut b, Command::QeeStore { expr: QeeExpr::linear(1 << 40, 0, 0), window: Window { shift: 0, bits: 8 }, dst: field(0, 8, false) }),
+        CommandError::Coefficient { name: "A", .. }
+    ));
+    assert!(matches!(
+        err(&mut b, Command::QeeStore { expr: QeeExpr::default(), window: Window { shift: 0, bits: 9 }, dst: field(0, 8, false) }),
+        CommandError::WidthMismatch { .. }
+    ));
+    assert!(matches!(
+        err(&mut b, Command::QeeSign { expr: QeeExpr::default(), window: Window { shift: 60, bits: 9 }, dst: Bit::Enable, combine: LogicOp::B }),
+        CommandError::Window { .. }
+    ));
+    assert!(matches!(
+        err(&mut b, Command::SetOrigin { x: 4000, y: 0 }),
+        CommandError::Origin { .. }
+    ));
+    assert!(matches!(
+        err(&mut b, Command::Save { field: field(0, 64, false), block: 127 }),
+        CommandError::BackingStore { .. }
+    ));
+    assert!(matches!(
+        err(&mut b, Command::MulConst { dst: field(0, 8, false), src: field(8, 8, false), k: 9, k_bits: 4 }),
+        CommandError::Multiplier { .. }
+    ));
+    assert!(matches!(
+        err(&mut b, Command::WriteConst { dst: field(0, 4, false), value: 16 }),
+        CommandError::Constant { .. }
+    ));
+    // Nothing ran: time did not move.
+    assert_eq!(b.now().0, 0);
+}

@@ -1,0 +1,13 @@
+//! The simulation kernel: simulated time and the deterministic event queue.
+//!
+//! This crate knows nothing of Pixel-Planes 5. It gives the rest of the simulator:
+//! - [`Tick`], the global time in picoseconds, and [`Cycles`], a count of clocks of one
+//!   [`ClockDomain`]; the two convert only through a clock domain, so a bare `u64` never means time;
+//! - [`EventQueue`], ordered by (tick, priority, component, sequence), so that events at the same
+//!   tick always pop in the same order whatever the host does.
+
+mod queue;
+mod time;
+
+pub use queue::{ComponentId, Event, EventQueue, Priority};
+pub use time::{ClockDomain, ClockError, Cycles, Tick};
