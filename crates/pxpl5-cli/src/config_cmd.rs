@@ -1,0 +1,50 @@
+//! `pxpl5 config check` and `pxpl5 config show`, and the loading of `--config FILE` shared by
+//! every subcommand.
+
+use std::path::{Path, PathBuf};
+
+use pxpl5_config::{ConfigError, MachineConfig};
+
+use crate::UserError;
+
+/// The config of `--config FILE`, or the embedded seed machine.
+pub fn load(file: Option<&Path>) -> Result<MachineConfig, UserError> {
+    match file {
+        None => Ok(pxpl5_config::default_config()),
+        Some(path) => pxpl5_config::load_file(path).map_err(report),
+    }
+}
+
+/// A config error as the user sees it: miette's report (source line, column marker, help).
+pub fn report(e: ConfigError) -> UserError {
+    UserError(format!("{:?}", miette::Report::new(e)))
+}
+
+pub fn check(files: &[PathBuf]) -> Result<(), UserError> {
+    let mut bad = Vec::new();
+    for f in files {
+        match pxpl5_config::load_file(f) {
+            Ok(cfg) => println!("{}: ok ({}, hash {})", f.display(), cfg.name, pxpl5_config::config_hash(&cfg)),
+            Err(e) => {
+                eprintln!("{}", report(e).0);
+                bad.push(f.display().to_string());
+            }
+        }
+    }
+    if bad.is_empty() {
+        Ok(())
+    } else {
+        Err(UserError(format!(
+            "{} of {} config files are invalid: {}",
+            bad.len(),
+            files.len(),
+            bad.join(", ")
+        )))
+    }
+}
+
+pub fn show(file: Option<&Path>) -> Result<(), UserError> {
+    let cfg = load(file)?;
+    print!("{}", pxpl5_config::show(&cfg));
+    Ok(())
+}

@@ -1,0 +1,368 @@
+//! Where every config parameter comes from: one [`Provenance`] entry per leaf field of the
+//! serialized config, with the tag of `pixel-planes-5-facts.md` and a short source.
+//!
+//! The table describes each field's *default* value (the seed's machine). A config file that
+//! changes a value says in its own comments where the new value comes from. A test walks the
+//! serialized default config and checks that every leaf path has exactly one entry here, so no
+//! parameter can be added to the schema undocumented.
+
+use std::fmt;
+
+use ron::ser::path_meta::{Field, Fields};
+
+/// The kind of source of a parameter, as tagged in `pixel-planes-5-facts.md`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Tag {
+    /// Fuchs et al., "Pixel-Planes 5", SIGGRAPH '89.
+    Paper,
+    /// Goldfeather, "Progressive Radiosity Using Hemispheres", UNC TR89-002.
+    Seed,
+    /// Later descriptions of the running machine (Kesteloot 1995 and others).
+    Secondary,
+    /// Pixel-Planes 4, Goldfeather & Fuchs 1986.
+    Lineage,
+    /// No source found: a named, configurable assumption.
+    Assumed,
+    /// Not a hardware parameter (a label, free text).
+    Choice,
+}
+
+impl Tag {
+    /// The tag as written in the facts file and in config comments, e.g. `[paper]`.
+    pub fn label(self) -> &'static str {
+        match self {
+            Tag::Paper => "[paper]",
+            Tag::Seed => "[seed]",
+            Tag::Secondary => "[secondary]",
+            Tag::Lineage => "[lineage]",
+            Tag::Assumed => "[assumed]",
+            Tag::Choice => "[choice]",
+        }
+    }
+}
+
+impl fmt::Display for Tag {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.label())
+    }
+}
+
+/// The provenance of one leaf field.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Provenance {
+    /// Dotted path of the field in the RON file, e.g. `renderer.qee.latency_cycles`.
+    pub path: &'static str,
+    pub tag: Tag,
+    /// Where the default comes from; `facts:` names the row of `pixel-planes-5-facts.md`.
+    pub source: &'static str,
+}
+
+const fn p(path: &'static str, tag: Tag, source: &'static str) -> Provenance {
+    Provenance { path, tag, source }
+}
+
+use Tag::{Assumed, Choice, Lineage, Paper, Secondary, Seed};
+
+/// One entry per leaf field of the serialized [`crate::MachineConfig`], in file order.
+pub const PROVENANCE: &[Provenance] = &[
+    p(
+        "name",
+        Choice,
+        "label of the machine, printed in stats and reports",
+    ),
+    p(
+        "description",
+        Choice,
+        "free text: where the machine comes from",
+    ),
+    // Graphics Processors.
+    p(
+        "gp.count",
+        Paper,
+        "Fuchs et al. 1989: up to 32 GPs; the count is set per config file (the seed states none)",
+    ),
+    p(
+        "gp.clock_hz",
+        Secondary,
+        "Intel i860 at 40 MHz (facts: Graphics Processors)",
+    ),
+    p(
+        "gp.memory_bytes",
+        Assumed,
+        "8 MB per GP, recalled, unverified (facts: GP memory)",
+    ),
+    p(
+        "gp.costs.vertex_transform",
+        Assumed,
+        "i860 cycles, 4x4 transform about 16-32 at 80 MFLOPS peak (facts: GP costs)",
+    ),
+    p(
+        "gp.costs.clip_test",
+        Assumed,
+        "i860 cycles, six compares (facts: GP costs)",
+    ),
+    p(
+        "gp.costs.polygon_setup",
+        Assumed,
+        "i860 cycles, plane equation, bounding box, binning (facts: GP costs)",
+    ),
+    p(
+        "gp.costs.edge_setup",
+        Assumed,
+        "i860 cycles per linear or quadratic expression (facts: GP costs)",
+    ),
+    p(
+        "gp.costs.command_encode",
+        Assumed,
+        "i860 cycles per Renderer command (facts: GP costs)",
+    ),
+    p(
+        "gp.costs.message_send",
+        Assumed,
+        "i860 cycles of software per ring message sent (facts: GP costs)",
+    ),
+    p(
+        "gp.costs.message_receive",
+        Assumed,
+        "i860 cycles of software per ring message received (facts: GP costs)",
+    ),
+    p(
+        "gp.costs.ff_accumulate_per_pixel",
+        Assumed,
+        "i860 cycles per read-back pixel of form-factor accumulation (facts: GP costs)",
+    ),
+    p(
+        "gp.costs.radiosity_update_per_patch",
+        Assumed,
+        "i860 cycles per patch and colour band (facts: GP costs)",
+    ),
+    // Ring.
+    p(
+        "ring.channels",
+        Seed,
+        "TR89-002: 80 million words/s \"4 channels on the ring\" (facts: Ring as the seed costs it)",
+    ),
+    p(
+        "ring.channel_clock_hz",
+        Seed,
+        "TR89-002: 80 Mwords/s over 4 channels = 20 MHz; [paper]'s 5 Gbit/s is 40 MHz with 32-bit \
+         words (facts: Ring as the seed costs it, Interconnect)",
+    ),
+    p(
+        "ring.word_bits",
+        Assumed,
+        "32: TR89-002 counts words, not bits; 32 bits makes [paper]'s 5 Gbit/s 160 Mwords/s \
+         (facts: Interconnect)",
+    ),
+    p(
+        "ring.hop_latency_cycles",
+        Assumed,
+        "1 channel clock per hop (facts: Ring hop latency, header size, ...)",
+    ),
+    p(
+        "ring.header_words",
+        Assumed,
+        "1 header word per message (facts: Ring hop latency, header size, ...)",
+    ),
+    p(
+        "ring.max_message_words",
+        Assumed,
+        "messages up to 1,024 words (facts: Ring hop latency, header size, ...)",
+    ),
+    p(
+        "ring.token_policy",
+        Assumed,
+        "early token release (facts: Ring hop latency, header size, ...)",
+    ),
+    p(
+        "ring.node_order",
+        Assumed,
+        "GPs and Renderers interleaved around the ring (no source describes the order)",
+    ),
+    p(
+        "ring.queue_words",
+        Assumed,
+        "2,048 words per node, channel and direction: a whole message and its header fit (no source found)",
+    ),
+    // Renderers.
+    p(
+        "renderer.count",
+        Paper,
+        "Fuchs et al. 1989: up to 16 Renderers; the count is set per config file (the seed states \
+         none)",
+    ),
+    p(
+        "renderer.width",
+        Paper,
+        "128 x 128 pixel processors per Renderer (facts: Renderers)",
+    ),
+    p(
+        "renderer.height",
+        Paper,
+        "128 x 128 pixel processors per Renderer (facts: Renderers)",
+    ),
+    p(
+        "renderer.pixel_memory_bits",
+        Paper,
+        "208 bits of on-chip memory per pixel (facts: On-chip memory)",
+    ),
+    p(
+        "renderer.flag_registers",
+        Assumed,
+        "4 one-bit flags besides the [secondary] enable register (facts: Enable register)",
+    ),
+    p(
+        "renderer.backing_store_bits",
+        Paper,
+        "4,096 bits of video RAM per pixel (facts: Backing store)",
+    ),
+    p(
+        "renderer.clock_hz",
+        Paper,
+        "40 MHz design clock, 1.6 um CMOS (facts: Clock)",
+    ),
+    p(
+        "renderer.qee.coefficient_format.int_bits",
+        Assumed,
+        "13 integer bits, room for values up to about N^2 (facts: QEE coefficient precision; \
+         radiosity-formulas.md section 6)",
+    ),
+    p(
+        "renderer.qee.coefficient_format.frac_bits",
+        Assumed,
+        "18 fractional bits place a hemisphere edge within 0.1 pixel at 128 across (facts: QEE \
+         coefficient precision; radiosity-formulas.md section 6)",
+    ),
+    p(
+        "renderer.qee.coordinate_bits",
+        Assumed,
+        "12-bit pixel addresses, enough for the 1280 x 1024 frame buffer (no source found)",
+    ),
+    p(
+        "renderer.qee.max_result_bits",
+        Assumed,
+        "result windows up to 64 bits, chosen per command (facts: QEE coefficient precision and \
+         result width)",
+    ),
+    p(
+        "renderer.qee.latency_cycles",
+        Assumed,
+        "8 cycles of pipeline fill: 7 tree levels for 128 pixels plus one (facts: QEE latency)",
+    ),
+    p(
+        "renderer.qee.quadratic_extra_cycles",
+        Lineage,
+        "0: the quadratic tree runs at the linear one's clock, b + latency cycles (facts: Cost of \
+         the quadratic tree; Cycles of a QEE command)",
+    ),
+    p(
+        "renderer.cycles.igc_overhead",
+        Assumed,
+        "20 cycles of IGC decode per command (facts: IGC overhead per command)",
+    ),
+    p(
+        "renderer.cycles.logic",
+        Assumed,
+        "1 cycle per enable or flag operation (facts: Bit-serial ALU costs)",
+    ),
+    p(
+        "renderer.cycles.alu_setup",
+        Assumed,
+        "+1 cycle of set-up per add, subtract or compare (facts: Bit-serial ALU costs)",
+    ),
+    p(
+        "renderer.cycles.per_bit",
+        Assumed,
+        "1 cycle per bit of a bit-serial operation (facts: Bit-serial ALU costs)",
+    ),
+    p(
+        "renderer.cycles.multiply_per_bit_pair",
+        Assumed,
+        "n x m cycles for an n-bit by m-bit multiply (facts: Bit-serial ALU costs)",
+    ),
+    p(
+        "renderer.cycles.backing_store_issue",
+        Assumed,
+        "1 foreground cycle to start a backing-store transfer (facts: Backing store block \
+         transfer)",
+    ),
+    p(
+        "renderer.cycles.readback_per_bit",
+        Assumed,
+        "1 cycle per bit to move a field to the readback port (facts: Where readback goes)",
+    ),
+    p(
+        "renderer.cycles.set_origin",
+        Assumed,
+        "0 cycles beyond the IGC overhead to load a region origin (facts: IGC overhead per \
+         command)",
+    ),
+    p(
+        "renderer.backing_store.block_bits",
+        Paper,
+        "32-bit blocks, also [secondary] (facts: Backing store)",
+    ),
+    p(
+        "renderer.backing_store.block_cycles",
+        Assumed,
+        "4,096 Renderer cycles per block in the background, VRAM serial ports of the period \
+         (facts: Backing store 32-bit block transfer)",
+    ),
+    // Frame buffer and host.
+    p(
+        "frame_buffer.width",
+        Paper,
+        "1280 x 1024 pixels (facts: Frame buffer)",
+    ),
+    p(
+        "frame_buffer.height",
+        Paper,
+        "1280 x 1024 pixels (facts: Frame buffer)",
+    ),
+    p(
+        "frame_buffer.bits_per_pixel",
+        Assumed,
+        "24 bits, 8 per colour (no source found)",
+    ),
+    p(
+        "host.present",
+        Secondary,
+        "a host workstation is attached to the ring (facts: Host)",
+    ),
+];
+
+/// The provenance entry of a dotted field path, if there is one.
+pub fn lookup(path: &str) -> Option<&'static Provenance> {
+    PROVENANCE.iter().find(|e| e.path == path)
+}
+
+/// The table as ron path metadata: each leaf gets one doc line `[tag] source`, which ron's
+/// pretty-printer writes as a `///` comment above the field.
+pub(crate) fn path_meta() -> Field {
+    let mut root = Field::empty();
+    for entry in PROVENANCE {
+        let parts: Vec<&str> = entry.path.split('.').collect();
+        attach(
+            &mut root,
+            &parts,
+            &format!("{} {}", entry.tag.label(), entry.source),
+        );
+    }
+    root
+}
+
+fn attach(field: &mut Field, parts: &[&str], doc: &str) {
+    match parts.split_first() {
+        None => {
+            field.with_doc(doc);
+        }
+        Some((head, rest)) => {
+            if field.fields().is_none() {
+                field.with_fields(Some(Fields::new()));
+            }
+            if let Some(fields) = field.fields_mut() {
+                attach(fields.field(*head), rest, doc);
+            }
+        }
+    }
+}
