@@ -109,12 +109,23 @@ impl WordEngine {
         }
     }
 
-    /// Pixel index p's (px, py).
+    /// The window of the QEE's value at the 64 pixels of word `w`: V = X(x) + Y(y) + (E y) x.
     #[inline]
-    fn xy(&self, p: usize) -> (usize, usize) {
-        let w = p / 64;
+    fn window_values(&self, s: &Streams, window: Window, w: usize, out: &mut [u64; 64]) {
         let (py, px0) = self.geometry.word_origin(w);
-        (px0 + p % 64, py)
+        let col = &s.col[px0..px0 + 64];
+        let row = s.row[py];
+        let (shift, m) = (window.shift, mask(window.bits));
+        if s.cross {
+            let (ey, x0) = (s.e_row[py], s.origin_x + px0 as i64);
+            for (i, (o, &c)) in out.iter_mut().zip(col).enumerate() {
+                *o = (((c + row + ey * (x0 + i as i64)) >> shift) as u64) & m;
+            }
+        } else {
+            for (o, &c) in out.iter_mut().zip(col) {
+                *o = (((c + row) >> shift) as u64) & m;
+            }
+        }
     }
 }
 
@@ -128,32 +139,53 @@ impl PixelEngine for WordEngine {
     }
 
     fn qee(&mut self, s: &Streams, window: Window, sink: QeeSink, active: &[u32]) {
-        let cut = |e: &Self, p: usize| {
-            let (px, py) = e.xy(p);
-            window.cut(s.value(px, py))
-        };
-        match sink {
-            QeeSink::Sign { dst, combine } => {
-                let top = window.bits - 1;
-                self.combine_bits(dst, combine, active, |e, p| (cut(e, p) >> top) & 1 == 0)
-            }
-            QeeSink::Store { dst } => self.update(dst, active, cut),
-            QeeSink::Compare {
-                field,
-                cmp,
-                dst,
-                combine,
-            } => {
-                let a = Access::of(field);
-                self.combine_bits(dst, combine, active, |e, p| {
-                    let lhs = value_of(cut(e, p), field.bits, field.signed);
-                    let rhs = value_of(e.get(a, p), field.bits, field.signed);
-                    cmp.holds(lhs, rhs)
-                })
-            }
-            QeeSink::Add { dst } => {
-                let a = Access::of(dst);
-                self.update(dst, active, |e, p| e.get(a, p).wrapping_add(cut(e, p)))
+        let mut cut = [0u64; 64];
+        for &w in active {
+            let w = w as usize;
+            self.window_values(s, window, w, &mut cut);
+            let base = w * 64;
+            let en = self.regs.enable[w];
+            match sink {
+                QeeSink::Sign { dst, combine } => {
+                    let top = window.bits - 1;
+                    let word = cut
+                        .iter()
+                        .enumerate()
+                        .fold(0u64, |acc, (i, &c)| acc | (((!c >> top) & 1) << i));
+                    self.regs.combine(dst, w, word, combine);
+                }
+                QeeSink::Store { dst } => {
+                    let a = Access::of(dst);
+                    for (i, &c) in cut.iter().enumerate() {
+                        if (en >> i) & 1 != 0 {
+                            self.set(a, base + i, c);
+                        }
+                    }
+                }
+                QeeSink::Compare {
+                    field,
+                    cmp,
+                    dst,
+                    combine,
+                } => {
+                    let a = Access::of(field);
+                    let mut word = 0u64;
+                    for (i, &c) in cut.iter().enumerate() {
+                        let lhs = value_of(c, field.bits, field.signed);
+                        let rhs = value_of(self.get(a, base + i), field.bits, field.signed);
+                        word |= (cmp.holds(lhs, rhs) as u64) << i;
+                    }
+                    self.regs.combine(dst, w, word, combine);
+                }
+                QeeSink::Add { dst } => {
+                    let a = Access::of(dst);
+                    for (i, &c) in cut.iter().enumerate() {
+                        if (en >> i) & 1 != 0 {
+                            let v = self.get(a, base + i).wrapping_add(c);
+                            self.set(a, base + i, v);
+                        }
+                    }
+                }
             }
         }
     }

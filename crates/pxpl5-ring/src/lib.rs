@@ -1,0 +1,1 @@
+//! The token ring (being written).
