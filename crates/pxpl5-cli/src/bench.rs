@@ -82,7 +82,10 @@ pub fn renderer(args: &RendererArgs) -> Result<(), UserError> {
                 digest: board.image().digest(),
                 host_seconds,
             };
-            if best.as_ref().is_none_or(|b| m.host_seconds < b.host_seconds) {
+            if best
+                .as_ref()
+                .is_none_or(|b| m.host_seconds < b.host_seconds)
+            {
                 best = Some(m);
             }
         }
@@ -114,7 +117,10 @@ pub fn renderer(args: &RendererArgs) -> Result<(), UserError> {
             "levels": levels,
             "levels_agree": agree,
         });
-        println!("{}", serde_json::to_string_pretty(&out).map_err(UserError::from)?);
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&out).map_err(UserError::from)?
+        );
     } else {
         println!("pxpl5 bench renderer: {}", mix.description);
         println!(
@@ -126,7 +132,11 @@ pub fn renderer(args: &RendererArgs) -> Result<(), UserError> {
             r.pixel_memory_bits,
             r.clock_hz / 1_000_000
         );
-        println!("{} commands; host figures: fastest of {} runs\n", mix.commands.len(), args.repeat);
+        println!(
+            "{} commands; host figures: fastest of {} runs\n",
+            mix.commands.len(),
+            args.repeat
+        );
         println!(
             "{:<9} {:>16} {:>14}  {:<16} {:>12} {:>22}",
             "fidelity", "Renderer cycles", "simulated ms", "digest", "host s", "cycles per host s"

@@ -24,7 +24,12 @@ pub fn check(files: &[PathBuf]) -> Result<(), UserError> {
     let mut bad = Vec::new();
     for f in files {
         match pxpl5_config::load_file(f) {
-            Ok(cfg) => println!("{}: ok ({}, hash {})", f.display(), cfg.name, pxpl5_config::config_hash(&cfg)),
+            Ok(cfg) => println!(
+                "{}: ok ({}, hash {})",
+                f.display(),
+                cfg.name,
+                pxpl5_config::config_hash(&cfg)
+            ),
             Err(e) => {
                 eprintln!("{}", report(e).0);
                 bad.push(f.display().to_string());

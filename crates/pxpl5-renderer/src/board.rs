@@ -71,7 +71,11 @@ pub enum CommandError {
         flags: u32,
     },
     #[error("{kind}: fields {a:?} and {b:?} overlap without being the same bits")]
-    Overlap { kind: &'static str, a: Field, b: Field },
+    Overlap {
+        kind: &'static str,
+        a: Field,
+        b: Field,
+    },
     #[error("{kind}: raw coefficient {name} = {raw} does not fit {bits}-bit QEE coefficients")]
     Coefficient {
         kind: &'static str,
@@ -216,9 +220,7 @@ impl Board {
         let flags = cfg.flag_registers as usize;
         let engine = match fidelity {
             Fidelity::Bit => Engine::Bit(BitEngine::new(geometry, cfg.pixel_memory_bits, flags)),
-            Fidelity::Word => {
-                Engine::Word(WordEngine::new(geometry, cfg.pixel_memory_bits, flags))
-            }
+            Fidelity::Word => Engine::Word(WordEngine::new(geometry, cfg.pixel_memory_bits, flags)),
         };
         Board {
             cfg: cfg.clone(),
@@ -269,7 +271,9 @@ impl Board {
         let ready = self
             .in_flight
             .iter()
-            .filter(|t| matches!(cmd, Command::Fence) || cmd.fields().iter().any(|f| f.overlaps(t.field)))
+            .filter(|t| {
+                matches!(cmd, Command::Fence) || cmd.fields().iter().any(|f| f.overlaps(t.field))
+            })
             .map(|t| t.done)
             .max()
             .unwrap_or(Cycles::ZERO);
@@ -301,16 +305,24 @@ impl Board {
         let gated = self.engine.get().registers().active_words(None);
         match *cmd {
             Command::SetOrigin { x, y } => self.origin = (x, y),
-            Command::Logic { dst, a, b, op } => self.engine.get_mut().registers_mut().logic(dst, a, b, op),
+            Command::Logic { dst, a, b, op } => {
+                self.engine.get_mut().registers_mut().logic(dst, a, b, op)
+            }
             Command::QeeSign {
                 ref expr,
                 window,
                 dst,
                 combine,
             } => {
-                let active = self.engine.get().registers().active_words(enable_write(dst, combine));
+                let active = self
+                    .engine
+                    .get()
+                    .registers()
+                    .active_words(enable_write(dst, combine));
                 let s = Streams::new(expr, self.origin, self.geometry.width, self.geometry.height);
-                self.engine.get_mut().qee(&s, window, QeeSink::Sign { dst, combine }, &active);
+                self.engine
+                    .get_mut()
+                    .qee(&s, window, QeeSink::Sign { dst, combine }, &active);
             }
             Command::QeeStore {
                 ref expr,
@@ -318,7 +330,9 @@ impl Board {
                 dst,
             } => {
                 let s = Streams::new(expr, self.origin, self.geometry.width, self.geometry.height);
-                self.engine.get_mut().qee(&s, window, QeeSink::Store { dst }, &gated);
+                self.engine
+                    .get_mut()
+                    .qee(&s, window, QeeSink::Store { dst }, &gated);
             }
             Command::QeeCompare {
                 ref expr,
@@ -328,7 +342,11 @@ impl Board {
                 dst,
                 combine,
             } => {
-                let active = self.engine.get().registers().active_words(enable_write(dst, combine));
+                let active = self
+                    .engine
+                    .get()
+                    .registers()
+                    .active_words(enable_write(dst, combine));
                 let s = Streams::new(expr, self.origin, self.geometry.width, self.geometry.height);
                 let sink = QeeSink::Compare {
                     field,
@@ -344,9 +362,13 @@ impl Board {
                 dst,
             } => {
                 let s = Streams::new(expr, self.origin, self.geometry.width, self.geometry.height);
-                self.engine.get_mut().qee(&s, window, QeeSink::Add { dst }, &gated);
+                self.engine
+                    .get_mut()
+                    .qee(&s, window, QeeSink::Add { dst }, &gated);
             }
-            Command::WriteConst { dst, value } => self.engine.get_mut().write_const(dst, value, &gated),
+            Command::WriteConst { dst, value } => {
+                self.engine.get_mut().write_const(dst, value, &gated)
+            }
             Command::Copy { dst, src } => self.engine.get_mut().copy(dst, src, &gated),
             Command::Add { dst, a, b } => self.engine.get_mut().add_sub(dst, a, b, false, &gated),
             Command::Sub { dst, a, b } => self.engine.get_mut().add_sub(dst, a, b, true, &gated),
@@ -357,12 +379,21 @@ impl Board {
                 dst,
                 combine,
             } => {
-                let active = self.engine.get().registers().active_words(enable_write(dst, combine));
-                self.engine.get_mut().compare(a, b, cmp, dst, combine, &active);
+                let active = self
+                    .engine
+                    .get()
+                    .registers()
+                    .active_words(enable_write(dst, combine));
+                self.engine
+                    .get_mut()
+                    .compare(a, b, cmp, dst, combine, &active);
             }
-            Command::MulConst { dst, src, k, k_bits } => {
-                self.engine.get_mut().mul_const(dst, src, k, k_bits, &gated)
-            }
+            Command::MulConst {
+                dst,
+                src,
+                k,
+                k_bits,
+            } => self.engine.get_mut().mul_const(dst, src, k, k_bits, &gated),
             Command::Save { field, block } => {
                 // The data are copied at issue: the interlock keeps every later access to the
                 // field behind the transfer's end, so no command can see the difference.

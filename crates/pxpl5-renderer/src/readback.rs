@@ -20,10 +20,9 @@ pub fn pack(values: &[u64], bits: u32, word_bits: u32) -> Vec<u64> {
         values
             .chunks(k)
             .map(|chunk| {
-                chunk
-                    .iter()
-                    .enumerate()
-                    .fold(0u64, |w, (i, &v)| w | ((v & mask(bits)) << (i as u32 * bits)))
+                chunk.iter().enumerate().fold(0u64, |w, (i, &v)| {
+                    w | ((v & mask(bits)) << (i as u32 * bits))
+                })
             })
             .collect()
     } else {
@@ -46,7 +45,9 @@ pub fn unpack(words: &[u64], bits: u32, word_bits: u32, count: usize) -> Vec<u64
         let per = bits.div_ceil(word_bits) as usize;
         (0..count)
             .map(|i| {
-                (0..per).fold(0u64, |v, j| v | (words[i * per + j] << (j as u32 * word_bits)))
+                (0..per).fold(0u64, |v, j| {
+                    v | (words[i * per + j] << (j as u32 * word_bits))
+                })
             })
             .collect()
     }

@@ -4,7 +4,7 @@
 
 use pxpl5_config::RendererConfig;
 use pxpl5_renderer::{
-    Bit, Board, Cmp, Command, CommandError, Field, Fidelity, LogicOp, PixelLayout, QeeExpr, Rect,
+    Bit, Board, Cmp, Command, CommandError, Fidelity, Field, LogicOp, PixelLayout, QeeExpr, Rect,
     Window, readback,
 };
 
@@ -32,7 +32,11 @@ fn check(setup: &[Command], cmd: Command, cycles: u64) -> Board {
     let ew = word.execute(&cmd).unwrap();
     assert_eq!(eb, ew, "{cmd:?}: bit and word executions differ");
     assert_eq!((eb.end - eb.start).0, cycles, "{cmd:?}: cycles");
-    assert_eq!(bit.image(), word.image(), "{cmd:?}: bit and word state differ");
+    assert_eq!(
+        bit.image(),
+        word.image(),
+        "{cmd:?}: bit and word state differ"
+    );
     bit
 }
 
@@ -212,7 +216,11 @@ fn compare_is_exact_across_widths_and_signedness() {
                 20 + 1 + 12,
             );
             let expect = cmp.holds(x as i128, vb as i128);
-            assert_eq!(board.bit_values(Bit::Flag(3))[0], expect, "{x} {cmp:?} {vb}");
+            assert_eq!(
+                board.bit_values(Bit::Flag(3))[0],
+                expect,
+                "{x} {cmp:?} {vb}"
+            );
         }
     }
 }
@@ -257,13 +265,11 @@ fn backing_store_runs_in_the_background_and_interlocks() {
 #[test]
 fn readback_packs_ring_words() {
     let id = field(0, 16, false);
-    let setup = [
-        Command::QeeStore {
-            expr: QeeExpr::linear(1, 1000, 0),
-            window: Window { shift: 0, bits: 16 },
-            dst: id,
-        },
-    ];
+    let setup = [Command::QeeStore {
+        expr: QeeExpr::linear(1, 1000, 0),
+        window: Window { shift: 0, bits: 16 },
+        dst: id,
+    }];
     let rect = Rect {
         x: 10,
         y: 20,
@@ -302,27 +308,70 @@ fn program_mistakes_are_errors_not_panics() {
     let [mut b, _] = boards(&[]);
     let err = |b: &mut Board, c: Command| b.execute(&c).unwrap_err();
     assert!(matches!(
-        err(&mut b, Command::WriteConst { dst: field(200, 16, false), value: 0 }),
+        err(
+            &mut b,
+            Command::WriteConst {
+                dst: field(200, 16, false),
+                value: 0
+            }
+        ),
         CommandError::FieldOutside { .. }
     ));
     assert!(matches!(
-        err(&mut b, Command::Add { dst: field(0, 8, false), a: field(4, 8, false), b: field(20, 8, false) }),
+        err(
+            &mut b,
+            Command::Add {
+                dst: field(0, 8, false),
+                a: field(4, 8, false),
+                b: field(20, 8, false)
+            }
+        ),
         CommandError::Overlap { .. }
     ));
     assert!(matches!(
-        err(&mut b, Command::Logic { dst: Bit::Flag(9), a: Bit::Enable, b: Bit::Enable, op: LogicOp::A }),
+        err(
+            &mut b,
+            Command::Logic {
+                dst: Bit::Flag(9),
+                a: Bit::Enable,
+                b: Bit::Enable,
+                op: LogicOp::A
+            }
+        ),
         CommandError::NoSuchFlag { .. }
     ));
     assert!(matches!(
-        err(&mut b, Command::QeeStore { expr: QeeExpr::linear(1 << 40, 0, 0), window: Window { shift: 0, bits: 8 }, dst: field(0, 8, false) }),
+        err(
+            &mut b,
+            Command::QeeStore {
+                expr: QeeExpr::linear(1 << 40, 0, 0),
+                window: Window { shift: 0, bits: 8 },
+                dst: field(0, 8, false)
+            }
+        ),
         CommandError::Coefficient { name: "A", .. }
     ));
     assert!(matches!(
-        err(&mut b, Command::QeeStore { expr: QeeExpr::default(), window: Window { shift: 0, bits: 9 }, dst: field(0, 8, false) }),
+        err(
+            &mut b,
+            Command::QeeStore {
+                expr: QeeExpr::default(),
+                window: Window { shift: 0, bits: 9 },
+                dst: field(0, 8, false)
+            }
+        ),
         CommandError::WidthMismatch { .. }
     ));
     assert!(matches!(
-        err(&mut b, Command::QeeSign { expr: QeeExpr::default(), window: Window { shift: 60, bits: 9 }, dst: Bit::Enable, combine: LogicOp::B }),
+        err(
+            &mut b,
+            Command::QeeSign {
+                expr: QeeExpr::default(),
+                window: Window { shift: 60, bits: 9 },
+                dst: Bit::Enable,
+                combine: LogicOp::B
+            }
+        ),
         CommandError::Window { .. }
     ));
     assert!(matches!(
@@ -330,15 +379,35 @@ fn program_mistakes_are_errors_not_panics() {
         CommandError::Origin { .. }
     ));
     assert!(matches!(
-        err(&mut b, Command::Save { field: field(0, 64, false), block: 127 }),
+        err(
+            &mut b,
+            Command::Save {
+                field: field(0, 64, false),
+                block: 127
+            }
+        ),
         CommandError::BackingStore { .. }
     ));
     assert!(matches!(
-        err(&mut b, Command::MulConst { dst: field(0, 8, false), src: field(8, 8, false), k: 9, k_bits: 4 }),
+        err(
+            &mut b,
+            Command::MulConst {
+                dst: field(0, 8, false),
+                src: field(8, 8, false),
+                k: 9,
+                k_bits: 4
+            }
+        ),
         CommandError::Multiplier { .. }
     ));
     assert!(matches!(
-        err(&mut b, Command::WriteConst { dst: field(0, 4, false), value: 16 }),
+        err(
+            &mut b,
+            Command::WriteConst {
+                dst: field(0, 4, false),
+                value: 16
+            }
+        ),
         CommandError::Constant { .. }
     ));
     // Nothing ran: time did not move.

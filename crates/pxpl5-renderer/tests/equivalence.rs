@@ -6,7 +6,7 @@
 use proptest::prelude::*;
 use pxpl5_config::RendererConfig;
 use pxpl5_renderer::{
-    Bit, Board, Cmp, Command, Field, Fidelity, LogicOp, QeeExpr, Rect, Window, workload,
+    Bit, Board, Cmp, Command, Fidelity, Field, LogicOp, QeeExpr, Rect, Window, workload,
 };
 
 /// Fields that exercise the layouts that matter: signed and unsigned, one bit, a field straddling
@@ -158,7 +158,12 @@ fn run_both(cfg: &RendererConfig, commands: &[Command]) -> Result<(), TestCaseEr
     }
     prop_assert_eq!(bit.stats(), word.stats());
     let (ib, iw) = (bit.image(), word.image());
-    prop_assert!(ib == iw, "final state differs: {} vs {}", ib.digest(), iw.digest());
+    prop_assert!(
+        ib == iw,
+        "final state differs: {} vs {}",
+        ib.digest(),
+        iw.digest()
+    );
     Ok(())
 }
 

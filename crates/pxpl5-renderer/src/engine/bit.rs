@@ -191,7 +191,15 @@ impl PixelEngine for BitEngine {
         }
     }
 
-    fn compare(&mut self, a: Field, b: Field, cmp: Cmp, dst: Bit, combine: LogicOp, active: &[u32]) {
+    fn compare(
+        &mut self,
+        a: Field,
+        b: Field,
+        cmp: Cmp,
+        dst: Bit,
+        combine: LogicOp,
+        active: &[u32],
+    ) {
         // Both operands extended to max + 2 bits: their difference cannot overflow there.
         let width = a.bits.max(b.bits) + 2;
         for &w in active {
@@ -206,7 +214,8 @@ impl PixelEngine for BitEngine {
                 carry = c;
                 d = s;
             }
-            self.regs.combine(dst, w, cmp.from_lt_eq(d, !differs), combine);
+            self.regs
+                .combine(dst, w, cmp.from_lt_eq(d, !differs), combine);
         }
     }
 

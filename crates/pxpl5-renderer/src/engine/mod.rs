@@ -196,11 +196,14 @@ mod tests {
     use super::*;
 
     #[test]
+    #[allow(clippy::needless_range_loop)] // (i, j) index a matrix both ways
     fn transpose_matches_the_naive_one() {
         let mut m = [0u64; 64];
         let mut x = 0x9E37_79B9_7F4A_7C15u64;
         for v in m.iter_mut() {
-            x = x.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            x = x
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             *v = x;
         }
         let orig = m;

@@ -196,7 +196,9 @@ impl PixelEngine for WordEngine {
 
     fn copy(&mut self, dst: Field, src: Field, active: &[u32]) {
         let s = Access::of(src);
-        self.update(dst, active, |e, p| extend(e.get(s, p), src.bits, src.signed))
+        self.update(dst, active, |e, p| {
+            extend(e.get(s, p), src.bits, src.signed)
+        })
     }
 
     fn add_sub(&mut self, dst: Field, a: Field, b: Field, subtract: bool, active: &[u32]) {
@@ -212,7 +214,15 @@ impl PixelEngine for WordEngine {
         })
     }
 
-    fn compare(&mut self, a: Field, b: Field, cmp: Cmp, dst: Bit, combine: LogicOp, active: &[u32]) {
+    fn compare(
+        &mut self,
+        a: Field,
+        b: Field,
+        cmp: Cmp,
+        dst: Bit,
+        combine: LogicOp,
+        active: &[u32],
+    ) {
         let (aa, ba) = (Access::of(a), Access::of(b));
         self.combine_bits(dst, combine, active, |e, p| {
             cmp.holds(

@@ -1,0 +1,128 @@
+//! The `pxpl5` command as a user runs it: exit codes, messages naming file, line and field, and
+//! the benchmark's agreement between fidelity levels.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn pxpl5(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pxpl5"))
+        .args(args)
+        .current_dir(root())
+        .output()
+        .expect("pxpl5 runs")
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+fn temp_file(name: &str, contents: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("pxpl5-cli-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(name);
+    std::fs::write(&p, contents).unwrap();
+    p
+}
+
+#[test]
+fn shipped_configs_check() {
+    let out = pxpl5(&[
+        "config",
+        "check",
+        "machine-configs/seed-tr89-002.ron",
+        "machine-configs/pxpl5-1989.ron",
+        "machine-configs/minimal.ron",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    assert_eq!(stdout.matches(": ok").count(), 3, "{stdout}");
+}
+
+#[test]
+fn a_typo_fails_with_line_and_column() {
+    let f = temp_file(
+        "typo.ron",
+        "(\n    name: \"typo\",\n    gp: (count: 1),\n    ring: (chanels: 4),\n    renderer: (count: 1),\n)\n",
+    );
+    let out = pxpl5(&["config", "check", f.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = text(&out.stderr);
+    assert!(err.contains("typo.ron:4:12"), "{err}");
+    assert!(err.contains("chanels") && err.contains("channels"), "{err}");
+}
+
+#[test]
+fn a_semantic_error_names_the_field() {
+    let f = temp_file(
+        "zero.ron",
+        "(name: \"zero\", gp: (count: 1), ring: (channels: 0), renderer: (count: 1))",
+    );
+    let out = pxpl5(&["bench", "renderer", "--config", f.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("ring.channels"),
+        "{}",
+        text(&out.stderr)
+    );
+}
+
+#[test]
+fn a_missing_file_is_a_user_error() {
+    let out = pxpl5(&["config", "show", "no/such/file.ron"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("no/such/file.ron"));
+}
+
+#[test]
+fn show_prints_provenance_and_parses_back() {
+    let out = pxpl5(&["config", "show"]);
+    assert!(out.status.success());
+    let shown = text(&out.stdout);
+    assert!(shown.contains("[assumed]") && shown.contains("[paper]"));
+    let back = pxpl5_config_parse(&shown);
+    assert!(back, "config show output does not parse back");
+}
+
+fn pxpl5_config_parse(text: &str) -> bool {
+    let f = temp_file("shown.ron", text);
+    pxpl5(&["config", "check", f.to_str().unwrap()])
+        .status
+        .success()
+}
+
+#[test]
+fn bench_levels_print_the_same_cycles_and_digest() {
+    let out = pxpl5(&[
+        "bench",
+        "renderer",
+        "--polygons",
+        "12",
+        "--repeat",
+        "1",
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let levels = v["levels"].as_array().unwrap();
+    assert_eq!(levels.len(), 2);
+    assert_eq!(levels[0]["fidelity"], "bit");
+    assert_eq!(levels[0]["renderer_cycles"], levels[1]["renderer_cycles"]);
+    assert_eq!(levels[0]["digest"], levels[1]["digest"]);
+    assert_eq!(v["levels_agree"], true);
+    assert!(levels[0]["renderer_cycles"].as_u64().unwrap() > 5_000);
+}
+
+#[test]
+fn help_explains_each_subcommand() {
+    let out = pxpl5(&["--help"]);
+    let help = text(&out.stdout);
+    assert!(help.contains("config") && help.contains("bench"), "{help}");
+    let out = pxpl5(&["bench", "renderer", "--help"]);
+    assert!(text(&out.stdout).contains("--fidelity"));
+    let out = pxpl5(&["frobnicate"]);
+    assert_eq!(out.status.code(), Some(2));
+}
