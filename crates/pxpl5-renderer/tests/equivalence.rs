@@ -203,3 +203,40 @@ fn hemisphere_mix_agrees_and_draws() {
     assert_eq!(ids[0], 0);
     assert_eq!(ids[128 * 128 - 1], 0);
 }
+
+/// Sign tests alone, many of them: the word level solves them per row span (monotone pieces,
+/// binary search, per-pixel fallback where the window could wrap), the bit level pixel by pixel.
+fn sign_tests() -> impl Strategy<Value = Vec<Command>> {
+    let one = (expr(), window(), bit(), logic_op(), any::<bool>()).prop_map(
+        |(expr, window, dst, combine, exact)| {
+            // Half the time the narrowest exact window (the usual program), else any window.
+            let window = if exact {
+                let w = expr.sign_window((0, 0), 512, 512);
+                if w.bits <= 64 { w } else { window }
+            } else {
+                window
+            };
+            Command::QeeSign {
+                expr,
+                window,
+                dst,
+                combine,
+            }
+        },
+    );
+    (0u32..300, 0u32..300, prop::collection::vec(one, 1..12)).prop_map(|(x, y, mut v)| {
+        v.insert(0, Command::SetOrigin { x, y });
+        v
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+    #[test]
+    fn sign_test_spans_agree_with_the_bit_level(commands in sign_tests()) {
+        let mut cfg = pxpl5_config::default_config().renderer;
+        cfg.height = 32;
+        run_both(&cfg, &commands)?;
+    }
+}

@@ -129,6 +129,115 @@ impl WordEngine {
     }
 }
 
+/// Sign tests solved per row span: along a row, V is a quadratic in x, so it is monotone on at most
+/// two pieces, and on a monotone piece whose window cannot wrap the pixels with W >= 0 form one
+/// prefix or suffix, found by binary search on exact values. A piece whose window might wrap falls
+/// back to evaluating every pixel. Exact: the property tests compare it with the bit level.
+impl WordEngine {
+    fn sign_test(
+        &mut self,
+        s: &Streams,
+        window: Window,
+        dst: Bit,
+        combine: LogicOp,
+        active: &[u32],
+    ) {
+        let wpr = self.geometry.words_per_row;
+        let mut row_bits = vec![0u64; wpr];
+        let mut i = 0;
+        while i < active.len() {
+            let py = active[i] as usize / wpr;
+            sign_row(s, window, py, self.geometry.width, &mut row_bits);
+            while i < active.len() && active[i] as usize / wpr == py {
+                let w = active[i] as usize;
+                self.regs.combine(dst, w, row_bits[w % wpr], combine);
+                i += 1;
+            }
+        }
+    }
+}
+
+/// Whether floor(v / 2^shift) fits the window's bits as a signed number (no wrap).
+#[inline]
+fn fits(v: i64, window: Window) -> bool {
+    let q = i128::from(v >> window.shift);
+    let half = 1i128 << (window.bits - 1);
+    -half <= q && q < half
+}
+
+/// Set bits `lo ..= hi` of a row's bit words, a word at a time.
+fn set_span(out: &mut [u64], lo: usize, hi: usize) {
+    for (w, word) in out.iter_mut().enumerate().take(hi / 64 + 1).skip(lo / 64) {
+        let first = lo.max(w * 64) - w * 64;
+        let last = hi.min(w * 64 + 63) - w * 64;
+        *word |= mask(last as u32 + 1) & !mask(first as u32);
+    }
+}
+
+/// The W >= 0 bits of row `py` into `out` (one u64 per 64 columns).
+fn sign_row(s: &Streams, window: Window, py: usize, width: usize, out: &mut [u64]) {
+    out.fill(0);
+    let f = |px: usize| s.value(px, py);
+    // f(px + 1) - f(px): linear in px (its slope is 2D), so monotone.
+    let g = |px: usize| s.col[px + 1] - s.col[px] + s.e_row[py];
+    let last = width - 1;
+    // Split where the forward difference changes sign: f is monotone on [0, k] and on [k, last].
+    let k = if last == 0 || (g(0) >= 0) == (g(last - 1) >= 0) {
+        last
+    } else {
+        let rising = g(0) < 0; // g goes from negative to non-negative
+        let (mut lo, mut hi) = (0usize, last - 1);
+        // First px in [0, last - 1] where g's sign class flips.
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            if (g(mid) >= 0) == rising {
+                hi = mid;
+            } else {
+                lo = mid + 1;
+            }
+        }
+        lo
+    };
+    let mut piece = |lo: usize, hi: usize| {
+        let (a, b) = (f(lo), f(hi));
+        if !(fits(a, window) && fits(b, window)) {
+            let top = window.bits - 1;
+            for px in lo..=hi {
+                if (window.cut(f(px)) >> top) & 1 == 0 {
+                    out[px / 64] |= 1 << (px % 64);
+                }
+            }
+            return;
+        }
+        match (a >= 0, b >= 0) {
+            (true, true) => set_span(out, lo, hi),
+            (false, false) => {}
+            (false, true) => {
+                // Non-decreasing: the first px with f >= 0.
+                let (mut l, mut h) = (lo, hi);
+                while l < h {
+                    let m = (l + h) / 2;
+                    if f(m) >= 0 { h = m } else { l = m + 1 }
+                }
+                set_span(out, l, hi);
+            }
+            (true, false) => {
+                // Non-increasing: the last px with f >= 0.
+                let (mut l, mut h) = (lo, hi);
+                while l < h {
+                    let m = (l + h).div_ceil(2);
+                    if f(m) >= 0 { l = m } else { h = m - 1 }
+                }
+                set_span(out, lo, l);
+            }
+        }
+    };
+    piece(0, k);
+    if k < last {
+        piece(k, last);
+    }
+}
+
 impl PixelEngine for WordEngine {
     fn registers(&self) -> &Registers {
         &self.regs
@@ -139,6 +248,9 @@ impl PixelEngine for WordEngine {
     }
 
     fn qee(&mut self, s: &Streams, window: Window, sink: QeeSink, active: &[u32]) {
+        if let QeeSink::Sign { dst, combine } = sink {
+            return self.sign_test(s, window, dst, combine, active);
+        }
         let mut cut = [0u64; 64];
         for &w in active {
             let w = w as usize;
@@ -146,14 +258,7 @@ impl PixelEngine for WordEngine {
             let base = w * 64;
             let en = self.regs.enable[w];
             match sink {
-                QeeSink::Sign { dst, combine } => {
-                    let top = window.bits - 1;
-                    let word = cut
-                        .iter()
-                        .enumerate()
-                        .fold(0u64, |acc, (i, &c)| acc | (((!c >> top) & 1) << i));
-                    self.regs.combine(dst, w, word, combine);
-                }
+                QeeSink::Sign { .. } => unreachable!("sign tests take the span path"),
                 QeeSink::Store { dst } => {
                     let a = Access::of(dst);
                     for (i, &c) in cut.iter().enumerate() {
