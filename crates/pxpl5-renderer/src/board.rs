@@ -145,6 +145,8 @@ pub struct Executed {
 pub struct ReadbackWords {
     /// The ring node the words are for (opaque to the board).
     pub dest: u32,
+    /// The command's tag, passed through.
+    pub tag: u32,
     /// Ring words of `word_bits` bits, packed as [`crate::readback`] documents.
     pub words: Vec<u64>,
 }
@@ -254,6 +256,11 @@ impl Board {
     /// waiting); never moves time back.
     pub fn idle_until(&mut self, t: Cycles) {
         self.now = self.now.max(t);
+    }
+
+    /// The region origin last loaded by `SetOrigin`.
+    pub fn origin(&self) -> (u32, u32) {
+        self.origin
     }
 
     pub fn stats(&self) -> &BoardStats {
@@ -424,10 +431,16 @@ impl Board {
                 self.start_transfer(field, end);
             }
             Command::Fence => {}
-            Command::Readback { field, rect, dest } => {
+            Command::Readback {
+                field,
+                rect,
+                dest,
+                tag,
+            } => {
                 let values = self.engine.get().read_values(field, rect);
                 *readback = Some(ReadbackWords {
                     dest,
+                    tag,
                     words: pack(&values, field.bits, self.word_bits),
                 });
             }

@@ -213,8 +213,14 @@ pub enum Command {
     /// Wait until every backing-store transfer has finished.
     Fence,
     /// Send a field of a rectangle of pixels to ring node `dest` as packed ring words
-    /// (see [`crate::readback`] for the packing).
-    Readback { field: Field, rect: Rect, dest: u32 },
+    /// (see [`crate::readback`] for the packing), with an opaque `tag` for the receiver (the
+    /// frame buffer reads it as the screen position of the array's pixel (0, 0)).
+    Readback {
+        field: Field,
+        rect: Rect,
+        dest: u32,
+        tag: u32,
+    },
 }
 
 impl Command {
@@ -237,6 +243,34 @@ impl Command {
             Command::Load { .. } => "load",
             Command::Fence => "fence",
             Command::Readback { .. } => "readback",
+        }
+    }
+
+    /// Ring words of this command's encoding ([assumed]: the IGC's format is not published). One
+    /// opcode word carries the kind and every small operand (field offsets and widths, flags,
+    /// window, comparison, combine op); then the QEE coefficients (3 for a linear expression, 6
+    /// for a quadratic), each `ceil(coefficient_bits / word_bits)` words; a constant's
+    /// `ceil(bits / word_bits)` words; one more word for an origin, a multiplier, or a readback's
+    /// rectangle and destination.
+    pub fn words(&self, coefficient_bits: u32, word_bits: u32) -> u32 {
+        let per_coefficient = coefficient_bits.div_ceil(word_bits);
+        1 + match self {
+            Command::QeeSign { expr, .. }
+            | Command::QeeStore { expr, .. }
+            | Command::QeeCompare { expr, .. }
+            | Command::QeeAdd { expr, .. } => {
+                per_coefficient * if expr.is_quadratic() { 6 } else { 3 }
+            }
+            Command::WriteConst { dst, .. } => dst.bits.div_ceil(word_bits),
+            Command::SetOrigin { .. } | Command::MulConst { .. } | Command::Readback { .. } => 1,
+            Command::Logic { .. }
+            | Command::Copy { .. }
+            | Command::Add { .. }
+            | Command::Sub { .. }
+            | Command::Compare { .. }
+            | Command::Save { .. }
+            | Command::Load { .. }
+            | Command::Fence => 0,
         }
     }
 

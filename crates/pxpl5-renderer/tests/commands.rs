@@ -282,6 +282,7 @@ fn readback_packs_ring_words() {
             field: id,
             rect,
             dest: 7,
+            tag: 9,
         },
         20 + 16,
     );
@@ -291,11 +292,12 @@ fn readback_packs_ring_words() {
             field: id,
             rect,
             dest: 7,
+            tag: 9,
         })
         .unwrap()
         .readback
         .unwrap();
-    assert_eq!(r.dest, 7);
+    assert_eq!((r.dest, r.tag), (7, 9));
     assert_eq!(r.words.len(), 8);
     let px = readback::unpack(&r.words, 16, 32, 15);
     assert_eq!(px[0], 10 + 20 * 1000);

@@ -133,7 +133,7 @@ fn command() -> impl Strategy<Value = Command> {
         1 => (field(), 0u32..130).prop_map(|(field, block)| Command::Load { field, block }),
         1 => Just(Command::Fence),
         1 => (field(), 0u32..70, 0u32..20, 1u32..70, 1u32..20).prop_map(|(field, x, y, w, h)| {
-            Command::Readback { field, rect: Rect { x, y, width: w, height: h }, dest: 3 }
+            Command::Readback { field, rect: Rect { x, y, width: w, height: h }, dest: 3, tag: 0 }
         }),
     ]
 }

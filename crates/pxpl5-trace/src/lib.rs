@@ -1,1 +1,42 @@
-//! Trace writers (being written).
+//! Trace writers over simulated time: the simulator's `--trace FILE` (Chrome trace-event JSON, for
+//! Perfetto or chrome://tracing) and `--vcd FILE` (Value Change Dump, for GTKWave or Surfer).
+//!
+//! The crate knows nothing of Pixel-Planes: it offers tracks, slices, instants and counters
+//! ([`ChromeTrace`]) and scoped wires ([`VcdTrace`]), all stamped with [`Tick`]s of simulated time,
+//! never host time. Both builders take a [`TraceWindow`] (parsed from user input such as `0..2ms`)
+//! and drop or clip what lies outside it as it is recorded. Both write byte-identical output for
+//! identical input, whatever the platform and whatever order events at different times were
+//! recorded in, so traces can be compared and committed as golden files.
+//!
+//! ```
+//! use pxpl5_sim::Tick;
+//! use pxpl5_trace::{Args, ChromeTrace, TraceWindow, VcdTrace};
+//!
+//! let mut trace = ChromeTrace::new("0..2ms".parse::<TraceWindow>().unwrap());
+//! let gp0 = trace.track("GPs", "GP 0");
+//! trace.slice(gp0, "transform", Tick(25_000), Tick(75_000), Args::new());
+//! assert!(trace.to_string().contains(r#""ts":0.025000,"dur":0.050000"#));
+//!
+//! let mut vcd = VcdTrace::default();
+//! let ring = vcd.scope("ring");
+//! let busy = vcd.wire(ring, "busy", 1);
+//! vcd.change(busy, Tick(50_000), 1);
+//! assert!(vcd.to_string().contains("#50000\n1!"));
+//! ```
+
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+mod chrome;
+mod vcd_trace;
+mod window;
+
+pub use chrome::{
+    Args, ChromeTrace, Micros, NestingError, RESERVED_METADATA_KEYS, SliceSpan, TIME_UNIT_NOTE,
+    TrackId,
+};
+pub use pxpl5_sim::Tick;
+pub use vcd_trace::{MAX_WIDTH, ScopeId, SignalId, VcdTrace};
+pub use window::{
+    TimeErrorKind, TimeParseError, TraceWindow, WindowParseError, format_time, parse_time,
+};

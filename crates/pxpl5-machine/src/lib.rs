@@ -1,0 +1,16 @@
+//! The machine: builds Pixel-Planes 5 from a config (GPs, Renderers, the frame buffer and the
+//! host on the token ring) and runs a program on it in simulated time.
+//!
+//! This is the only crate that knows the topology. Programs see only the GP runtime ([`gp`]:
+//! [`Gp`], [`Program`], [`Unit`], [`Payload`]) and the Renderer command set; stats are simulated
+//! quantities only ([`RunStats`]); traces are recorded by [`Recorder`] in simulated time.
+
+pub mod gp;
+mod machine;
+mod record;
+mod stats;
+
+pub use gp::{Gp, GpFuture, Message, Op, Payload, Program, ProgramError, Unit};
+pub use machine::{Frame, Machine, RunError, RunOptions, RunResult, node_order};
+pub use record::Recorder;
+pub use stats::{GpStats, PhaseSpan, RendererNodeStats, RunStats};

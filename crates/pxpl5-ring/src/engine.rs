@@ -1,0 +1,342 @@
+//! The token-passing core: what happens at one channel clock ([`decide_at`]), and the next clock
+//! at which anything can be captured ([`next_decision`]).
+//!
+//! Both paths of [`crate::Ring`] use these two functions: the clock-by-clock reference calls
+//! [`decide_at`] on every clock; the fast path calls it only on the clocks [`next_decision`]
+//! computes arithmetically, since a clock on which no token is captured changes nothing but token
+//! positions, which are a linear function of time. The state they work on ([`Flow`]) is small and
+//! cloneable, so [`crate::Ring::next_event_tick`] can look ahead on a copy without touching the
+//! ring.
+//!
+//! Clocks here are plain `u64` channel-clock numbers (edge `t` is at tick `t * period`); they
+//! never leave the crate as bare numbers.
+
+use std::collections::VecDeque;
+
+use pxpl5_config::TokenPolicy;
+
+use crate::MessageId;
+
+/// The ring's parameters, checked by [`crate::Ring::new`].
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Params {
+    pub nodes: u32,
+    pub channels: u32,
+    /// Channel clocks per hop, at least 1 (a zero would let a free token circle forever in one
+    /// clock).
+    pub hop: u64,
+    pub header_words: u32,
+    pub max_payload: u32,
+    pub queue_words: u32,
+    pub policy: TokenPolicy,
+}
+
+impl Params {
+    /// Hops from `src` to `dst` in the direction of data flow (increasing position, wrapping).
+    pub fn hops(&self, src: u32, dst: u32) -> u64 {
+        u64::from((dst + self.nodes - src) % self.nodes)
+    }
+
+    /// Clocks for a free token to go once round the ring.
+    fn lap(&self) -> u64 {
+        u64::from(self.nodes) * self.hop
+    }
+}
+
+/// One packet waiting in an output queue: a header plus up to `max_message_words` payload words.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Packet {
+    pub msg: MessageId,
+    pub src: u32,
+    pub dst: u32,
+    pub payload: u32,
+    /// Header plus payload words: clocks of transmission.
+    pub words: u32,
+    /// Input-queue words to reserve at the destination when this packet starts: the whole
+    /// message's words (headers included) on its first packet, zero on the others (their credit
+    /// was reserved with the first; see the crate doc, "input queue").
+    pub reserve: u32,
+    /// The message's final packet.
+    pub last: bool,
+    /// First clock at which the packet may start (the first edge at or after its send time).
+    pub eligible: u64,
+}
+
+/// Where a channel's token goes next: it reaches node `pos` at clock `at` and is free there.
+/// Between visits it is travelling (or held by the sender that captured it, see
+/// [`crate::Ring::token_at`]); a token that is not captured at `pos` reaches `pos + 1` at
+/// `at + hop`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Token {
+    pub pos: u32,
+    pub at: u64,
+}
+
+/// The state that capture decisions read and change: tokens, how many packets each node has
+/// started in this look-ahead (so the queues themselves stay untouched), input-queue credit in use
+/// per node, and the first clock not yet decided.
+#[derive(Clone, Debug)]
+pub(crate) struct Flow {
+    pub tokens: Vec<Token>,
+    /// Packets already started from the front of each node's output queue but not yet popped.
+    pub offsets: Vec<usize>,
+    /// Input-queue words per node: reserved for messages in flight plus delivered, not consumed.
+    pub in_used: Vec<u64>,
+    /// The first clock whose capture decisions have not been taken.
+    pub next_clock: u64,
+}
+
+/// A packet that started on a channel, with its timing fixed at that moment.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Capture {
+    pub channel: u32,
+    pub packet: Packet,
+    /// Clock of the first (header) word.
+    pub start: u64,
+    /// The clock after the last word is sent: the packet's output-queue words free then.
+    pub end_tx: u64,
+    /// Clock at which the last word reaches the destination: the packet's delivery.
+    pub arrival: u64,
+    /// Clock at which the sender lets the token go (early: `end_tx`; late: `arrival`).
+    pub release: u64,
+}
+
+/// The packet node `q` would start now, ignoring only its eligibility time: the first packet of
+/// the output queue not yet started (FIFO, head-of-line blocking), provided the destination has
+/// room for its whole message when it is the message's first packet.
+fn startable<'a>(
+    p: &Params,
+    out: &'a [VecDeque<Packet>],
+    flow: &Flow,
+    q: u32,
+) -> Option<&'a Packet> {
+    let pkt = out[q as usize].get(flow.offsets[q as usize])?;
+    let free = u64::from(p.queue_words).saturating_sub(flow.in_used[pkt.dst as usize]);
+    (u64::from(pkt.reserve) <= free).then_some(pkt)
+}
+
+/// Moves a free token that was not captured on its way to its first visit at or after clock `t`.
+fn normalise(p: &Params, tok: &mut Token, t: u64) {
+    if tok.at < t {
+        let steps = (t - tok.at).div_ceil(p.hop);
+        tok.pos = ((u64::from(tok.pos) + steps % u64::from(p.nodes)) % u64::from(p.nodes)) as u32;
+        tok.at += steps * p.hop;
+    }
+}
+
+/// Takes every capture decision of clock `t` (which must be `flow.next_clock` or later, with no
+/// capture possible in between): channels in increasing number, so that when two tokens stand at
+/// nodes at the same clock the lower channel chooses first (\[assumed\] tie rule). Appends the
+/// packets started to `caps` and sets `flow.next_clock` to `t + 1`.
+pub(crate) fn decide_at(
+    p: &Params,
+    out: &[VecDeque<Packet>],
+    flow: &mut Flow,
+    t: u64,
+    caps: &mut Vec<Capture>,
+) {
+    assert!(
+        t >= flow.next_clock,
+        "pxpl5-ring model bug on channel (any), clock {t}: clock already decided (next is {})",
+        flow.next_clock
+    );
+    for c in 0..p.channels {
+        let mut tok = flow.tokens[c as usize];
+        normalise(p, &mut tok, t);
+        if tok.at == t {
+            let q = tok.pos;
+            let next = (q + 1) % p.nodes;
+            let ready = startable(p, out, flow, q).filter(|pkt| pkt.eligible <= t);
+            if let Some(&pkt) = ready {
+                let words = u64::from(pkt.words);
+                let end_tx = t + words;
+                let arrival = end_tx + p.hops(q, pkt.dst) * p.hop;
+                let release = match p.policy {
+                    TokenPolicy::EarlyRelease => end_tx,
+                    TokenPolicy::LateRelease => arrival,
+                };
+                // The released token moves on from the sender: it reaches the next node one hop
+                // after release (the sender cannot take it straight back, so tokens go round).
+                tok = Token {
+                    pos: next,
+                    at: release + p.hop,
+                };
+                flow.offsets[q as usize] += 1;
+                flow.in_used[pkt.dst as usize] += u64::from(pkt.reserve);
+                caps.push(Capture {
+                    channel: c,
+                    packet: pkt,
+                    start: t,
+                    end_tx,
+                    arrival,
+                    release,
+                });
+            } else {
+                tok = Token {
+                    pos: next,
+                    at: t + p.hop,
+                };
+            }
+        }
+        flow.tokens[c as usize] = tok;
+    }
+    flow.next_clock = t + 1;
+}
+
+/// The first clock at or after `flow.next_clock` at which some token stands at a node that can
+/// start a packet, or `None` if no packet can ever start without a new send or consume.
+///
+/// Until the first capture nothing that gates a capture changes (heads, credit and eligibility
+/// change only at captures, sends and consumes), so each free token's visits to node `q` are the
+/// arithmetic sequence `at + j*hop + m*lap` and the first one at or after the packet's eligibility
+/// is found by one division. This is what lets the ring skip idle stretches.
+pub(crate) fn next_decision(p: &Params, out: &[VecDeque<Packet>], flow: &Flow) -> Option<u64> {
+    let ready: Vec<(u32, u64)> = (0..p.nodes)
+        .filter_map(|q| {
+            startable(p, out, flow, q).map(|pkt| (q, pkt.eligible.max(flow.next_clock)))
+        })
+        .collect();
+    if ready.is_empty() {
+        return None;
+    }
+    let lap = p.lap();
+    let mut best: Option<u64> = None;
+    for tok in &flow.tokens {
+        for &(q, from) in &ready {
+            let first = tok.at + p.hops(tok.pos, q) * p.hop;
+            let visit = if first >= from {
+                first
+            } else {
+                first + (from - first).div_ceil(lap) * lap
+            };
+            best = Some(best.map_or(visit, |b| b.min(visit)));
+        }
+    }
+    best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params(nodes: u32, channels: u32, hop: u64) -> Params {
+        Params {
+            nodes,
+            channels,
+            hop,
+            header_words: 1,
+            max_payload: 16,
+            queue_words: 64,
+            policy: TokenPolicy::EarlyRelease,
+        }
+    }
+
+    fn flow(p: &Params, tokens: Vec<Token>) -> Flow {
+        Flow {
+            tokens,
+            offsets: vec![0; p.nodes as usize],
+            in_used: vec![0; p.nodes as usize],
+            next_clock: 0,
+        }
+    }
+
+    fn packet(src: u32, dst: u32, payload: u32, eligible: u64) -> Packet {
+        Packet {
+            msg: MessageId(0),
+            src,
+            dst,
+            payload,
+            words: payload + 1,
+            reserve: payload + 1,
+            last: true,
+            eligible,
+        }
+    }
+
+    #[test]
+    fn hops_wrap_in_the_direction_of_flow() {
+        let p = params(5, 1, 1);
+        assert_eq!(p.hops(1, 3), 2);
+        assert_eq!(p.hops(3, 1), 3);
+        assert_eq!(p.hops(4, 0), 1);
+    }
+
+    #[test]
+    fn normalise_steps_whole_hops() {
+        let p = params(5, 1, 3);
+        let mut tok = Token { pos: 4, at: 10 };
+        normalise(&p, &mut tok, 10);
+        assert_eq!(tok, Token { pos: 4, at: 10 });
+        // 11..=13 is one hop on: node 0 at clock 13.
+        normalise(&p, &mut tok, 11);
+        assert_eq!(tok, Token { pos: 0, at: 13 });
+        // Seven laps and two hops later.
+        normalise(&p, &mut tok, 13 + 7 * 15 + 5);
+        assert_eq!(
+            tok,
+            Token {
+                pos: 2,
+                at: 13 + 7 * 15 + 6
+            }
+        );
+    }
+
+    #[test]
+    fn next_decision_waits_for_eligibility_by_whole_laps() {
+        // 4 nodes, hop 2: the token visits node 3 at 6, 14, 22, ...
+        let p = params(4, 1, 2);
+        let mut out = vec![VecDeque::new(); 4];
+        out[3].push_back(packet(3, 1, 4, 15));
+        let f = flow(&p, vec![Token { pos: 0, at: 0 }]);
+        assert_eq!(next_decision(&p, &out, &f), Some(22));
+        // Nothing waiting: nothing to decide.
+        let empty = vec![VecDeque::new(); 4];
+        assert_eq!(next_decision(&p, &empty, &f), None);
+    }
+
+    #[test]
+    fn a_full_destination_blocks_the_head_and_the_packets_behind_it() {
+        let p = params(4, 1, 1);
+        let mut out = vec![VecDeque::new(); 4];
+        out[0].push_back(packet(0, 2, 10, 0));
+        out[0].push_back(packet(0, 3, 1, 0));
+        let mut f = flow(&p, vec![Token { pos: 0, at: 0 }]);
+        f.in_used[2] = 60; // 4 words free, the head needs 11
+        assert_eq!(next_decision(&p, &out, &f), None);
+        let mut caps = Vec::new();
+        decide_at(&p, &out, &mut f, 0, &mut caps);
+        assert!(caps.is_empty());
+        assert_eq!(f.tokens[0], Token { pos: 1, at: 1 });
+    }
+
+    #[test]
+    fn decide_at_starts_a_packet_and_releases_the_token_by_policy() {
+        for (policy, release) in [
+            (TokenPolicy::EarlyRelease, 5 + 11),
+            (TokenPolicy::LateRelease, 5 + 11 + 3 * 2),
+        ] {
+            let mut p = params(6, 1, 2);
+            p.policy = policy;
+            let mut out = vec![VecDeque::new(); 6];
+            out[1].push_back(packet(1, 4, 10, 0));
+            let mut f = flow(&p, vec![Token { pos: 1, at: 5 }]);
+            f.next_clock = 5;
+            let mut caps = Vec::new();
+            decide_at(&p, &out, &mut f, 5, &mut caps);
+            assert_eq!(caps.len(), 1);
+            let c = caps[0];
+            assert_eq!((c.start, c.end_tx, c.arrival), (5, 16, 16 + 6));
+            assert_eq!(c.release, release);
+            assert_eq!(
+                f.tokens[0],
+                Token {
+                    pos: 2,
+                    at: release + 2
+                }
+            );
+            assert_eq!(f.offsets[1], 1);
+            assert_eq!(f.in_used[4], 11);
+            assert_eq!(f.next_clock, 6);
+        }
+    }
+}

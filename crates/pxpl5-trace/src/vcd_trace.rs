@@ -1,0 +1,295 @@
+//! [`VcdTrace`]: a builder of Value Change Dump files (for GTKWave, Surfer) over simulated time,
+//! written through the `vcd` crate.
+//!
+//! # Output format
+//!
+//! * `$timescale 1 ps $end`: VCD times are [`Tick`]s unchanged, absolute simulated time (also
+//!   inside a window, so they match the simulator's other reports).
+//! * No `$date` and no version number: a file must depend only on the run, so identical runs give
+//!   identical bytes. A `$comment` says the times are simulated, and names the window if any.
+//! * One `$scope module` per scope, in creation order, holding its wires in creation order. Wires
+//!   wider than one bit carry the range `[W-1:0]`. Identifier codes are the `vcd` crate's
+//!   [`IdCode`]s numbered in wire creation order.
+//! * Initial values: every wire starts at 0 (not `x`: the simulator's state is defined from time
+//!   zero, so "unknown" would be a lie). They are written under `$dumpvars` at the window start
+//!   (`#0` for the whole run), after folding in every change at or before that instant.
+//! * Changes may be recorded in any order. They are written sorted by time, then wire creation
+//!   order. When one wire changes several times at one instant, the last recorded value wins (as
+//!   in a simulator's delta cycles); a change to the value a wire already has is not written.
+//! * Window: changes before the start are folded into the initial values, changes at or after
+//!   the end are dropped (both as they are recorded, so a long run need not fit in memory).
+//! * Names: VCD names are whitespace-separated tokens, so characters other than printable ASCII
+//!   (space included) become `_`, and an empty name becomes `_`.
+
+use std::collections::HashMap;
+use std::fmt;
+use std::io::{self, Write};
+
+use pxpl5_sim::Tick;
+use vcd::{IdCode, ReferenceIndex, SimulationCommand, TimescaleUnit, Value, VarType};
+
+use crate::window::TraceWindow;
+
+/// Widest wire a `u64` value can drive.
+pub const MAX_WIDTH: u32 = 64;
+
+/// A scope (VCD module) of one [`VcdTrace`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct ScopeId(usize);
+
+/// A wire of one [`VcdTrace`]; meaningless to any other trace.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct SignalId(usize);
+
+#[derive(Debug)]
+struct Scope {
+    name: String,
+    signals: Vec<usize>,
+}
+
+#[derive(Debug)]
+struct Signal {
+    name: String,
+    width: u32,
+    /// The value at the window start and when it was set (for folding changes recorded out of
+    /// order: the latest one wins).
+    initial: Option<(Tick, u64)>,
+    /// Changes inside the window, after its start, in recording order.
+    changes: Vec<(Tick, u64)>,
+}
+
+/// A builder of a VCD file over simulated time. See the module docs for the output format.
+#[derive(Debug)]
+pub struct VcdTrace {
+    window: TraceWindow,
+    scopes: Vec<Scope>,
+    scope_ids: HashMap<String, ScopeId>,
+    signals: Vec<Signal>,
+    end: Option<Tick>,
+}
+
+impl Default for VcdTrace {
+    fn default() -> VcdTrace {
+        VcdTrace::new(TraceWindow::all())
+    }
+}
+
+impl VcdTrace {
+    /// An empty trace keeping what falls in `window`.
+    pub fn new(window: TraceWindow) -> VcdTrace {
+        VcdTrace {
+            window,
+            scopes: Vec::new(),
+            scope_ids: HashMap::new(),
+            signals: Vec::new(),
+            end: None,
+        }
+    }
+
+    /// The window this trace keeps.
+    pub fn window(&self) -> TraceWindow {
+        self.window
+    }
+
+    /// The scope (VCD module) named `name`, created on first use.
+    pub fn scope(&mut self, name: &str) -> ScopeId {
+        if let Some(&id) = self.scope_ids.get(name) {
+            return id;
+        }
+        let id = ScopeId(self.scopes.len());
+        self.scopes.push(Scope {
+            name: name.to_owned(),
+            signals: Vec::new(),
+        });
+        self.scope_ids.insert(name.to_owned(), id);
+        id
+    }
+
+    /// A new wire `name` of `width` bits in `scope`, initially 0.
+    ///
+    /// # Panics
+    ///
+    /// If `width` is 0 or above [`MAX_WIDTH`]: widths come from the simulator's code, never from
+    /// its user, so a bad one is a bug to stop at.
+    pub fn wire(&mut self, scope: ScopeId, name: &str, width: u32) -> SignalId {
+        assert!(
+            (1..=MAX_WIDTH).contains(&width),
+            "VCD wire `{name}` has width {width}; expected 1 to {MAX_WIDTH} bits"
+        );
+        let id = SignalId(self.signals.len());
+        self.signals.push(Signal {
+            name: name.to_owned(),
+            width,
+            initial: None,
+            changes: Vec::new(),
+        });
+        self.scopes[scope.0].signals.push(id.0);
+        id
+    }
+
+    /// Records that `signal` takes `value` at `at`. Bits above the wire's width are dropped, as
+    /// when a Verilog value is assigned to a narrower wire.
+    pub fn change(&mut self, signal: SignalId, at: Tick, value: u64) {
+        let window = self.window;
+        if at >= window.end {
+            return;
+        }
+        let s = &mut self.signals[signal.0];
+        let value = mask(value, s.width);
+        if at <= window.start {
+            // Later changes win; at equal times the later-recorded one does, as in `write`.
+            if s.initial.is_none_or(|(t, _)| at >= t) {
+                s.initial = Some((at, value));
+            }
+        } else {
+            s.changes.push((at, value));
+        }
+    }
+
+    /// Sets when the simulation ended: written (clipped to the window) as a final timestamp so that
+    /// viewers show how long the last values lasted.
+    pub fn set_end(&mut self, at: Tick) {
+        self.end = Some(at);
+    }
+
+    /// Writes the VCD text to `w` (wrap a file in a `BufWriter`: this writes in small pieces).
+    pub fn write<W: Write>(&self, w: W) -> io::Result<()> {
+        let mut out = vcd::Writer::new(w);
+        // No version number: a release should not change every golden file.
+        out.version("pxpl5-trace")?;
+        out.comment("timestamps are simulated time in picoseconds, not host time")?;
+        if self.window != TraceWindow::all() {
+            out.comment(&format!("trace window {}", self.window))?;
+        }
+        out.timescale(1, TimescaleUnit::PS)?;
+        for scope in &self.scopes {
+            out.add_module(&vcd_name(&scope.name))?;
+            for &index in &scope.signals {
+                let s = &self.signals[index];
+                let range = (s.width > 1).then(|| ReferenceIndex::Range(s.width as i32 - 1, 0));
+                out.var_def(
+                    VarType::Wire,
+                    s.width,
+                    id_code(index),
+                    &vcd_name(&s.name),
+                    range,
+                )?;
+            }
+            out.upscope()?;
+        }
+        out.enddefinitions()?;
+
+        let mut current: Vec<u64> = self
+            .signals
+            .iter()
+            .map(|s| s.initial.map_or(0, |(_, v)| v))
+            .collect();
+        out.timestamp(self.window.start.as_ps())?;
+        out.begin(SimulationCommand::Dumpvars)?;
+        for (index, s) in self.signals.iter().enumerate() {
+            write_value(&mut out, index, s.width, current[index])?;
+        }
+        out.end()?;
+
+        let mut changes: Vec<(Tick, usize, u64)> = self
+            .signals
+            .iter()
+            .enumerate()
+            .flat_map(|(index, s)| s.changes.iter().map(move |&(at, v)| (at, index, v)))
+            .collect();
+        // Stable, so changes to one wire at one instant stay in recording order and the last wins.
+        changes.sort_by_key(|&(at, index, _)| (at, index));
+        let mut last_time = self.window.start;
+        for (i, &(at, index, value)) in changes.iter().enumerate() {
+            let superseded = changes
+                .get(i + 1)
+                .is_some_and(|&(next_at, next_index, _)| (next_at, next_index) == (at, index));
+            if superseded || current[index] == value {
+                continue;
+            }
+            if at != last_time {
+                out.timestamp(at.as_ps())?;
+                last_time = at;
+            }
+            write_value(&mut out, index, self.signals[index].width, value)?;
+            current[index] = value;
+        }
+        if let Some(end) = self.end {
+            let end = end.min(self.window.end);
+            if end > last_time {
+                out.timestamp(end.as_ps())?;
+            }
+        }
+        out.flush()
+    }
+}
+
+/// The whole VCD text (what [`VcdTrace::write`] writes).
+impl fmt::Display for VcdTrace {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let mut bytes = Vec::new();
+        self.write(&mut bytes).map_err(|_| fmt::Error)?;
+        f.write_str(std::str::from_utf8(&bytes).map_err(|_| fmt::Error)?)
+    }
+}
+
+fn write_value<W: Write>(
+    out: &mut vcd::Writer<W>,
+    index: usize,
+    width: u32,
+    value: u64,
+) -> io::Result<()> {
+    let id = id_code(index);
+    if width == 1 {
+        out.change_scalar(id, value & 1 == 1)
+    } else {
+        // Most significant bit first, all `width` bits, so the text reads like the number.
+        let bits = (0..width)
+            .rev()
+            .map(|bit| Value::from((value >> bit) & 1 == 1));
+        out.change_vector(id, bits)
+    }
+}
+
+fn id_code(index: usize) -> IdCode {
+    IdCode::from(index as u64)
+}
+
+fn mask(value: u64, width: u32) -> u64 {
+    if width >= 64 {
+        value
+    } else {
+        value & ((1u64 << width) - 1)
+    }
+}
+
+/// `name` as one VCD token: printable ASCII other than space kept, everything else `_`.
+fn vcd_name(name: &str) -> String {
+    if name.is_empty() {
+        return "_".to_owned();
+    }
+    name.chars()
+        .map(|c| if c.is_ascii_graphic() { c } else { '_' })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_become_single_tokens() {
+        assert_eq!(vcd_name("GP 0"), "GP_0");
+        assert_eq!(vcd_name("ch\t2\n"), "ch_2_");
+        assert_eq!(vcd_name("µs"), "_s");
+        assert_eq!(vcd_name(""), "_");
+        assert_eq!(vcd_name("data[7]"), "data[7]");
+    }
+
+    #[test]
+    fn values_are_masked_to_the_width() {
+        assert_eq!(mask(0x1ff, 8), 0xff);
+        assert_eq!(mask(3, 1), 1);
+        assert_eq!(mask(u64::MAX, 64), u64::MAX);
+    }
+}

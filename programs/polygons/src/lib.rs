@@ -1,0 +1,367 @@
+//! The polygon program: triangles on the screen, as Pixel-Planes 5 rendered them.
+//!
+//! Every GP owns a share of the database (triangle i belongs to GP i mod G). In three phases:
+//!
+//! 1. **transform**: each GP transforms, clips (near and far planes) and projects its triangles
+//!    (charged per vertex and per polygon from the cost table) and bins them into the 128 x 128
+//!    screen regions of the 1280 x 1024 frame buffer. Region k is rendered by Renderer k mod R,
+//!    and Renderer r is driven by GP r mod G.
+//! 2. **distribute**: each GP sends every driving GP the triangles binned for its regions (one
+//!    message each, empty or not, so the receiver knows when it has everything).
+//! 3. **render**: each driving GP, region by region of its Renderers, sends the commands that
+//!    scan-convert (three linear edge tests into enable), z-buffer (a linear depth compared with
+//!    the depth field, stored where nearer) and Gouraud-shade (three linear colour expressions
+//!    stored to 8-bit fields) every triangle in scene order, then a readback of the colour field
+//!    to the frame buffer, which writes the region's pixels.
+//!
+//! Shading differs from the paper's 1M triangles/s goal, which counts Phong-shaded triangles: here
+//! colour is Gouraud (three linear expressions per triangle, no per-pixel normal).
+
+pub mod geometry;
+pub mod reference;
+pub mod scenes;
+
+use pxpl5_config::scene::TriangleScene;
+use pxpl5_machine::{Gp, GpFuture, Op, Payload, Program, ProgramError, Unit};
+use pxpl5_renderer::{Bit, Cmp, Command, Field, LogicOp, PixelLayout, Rect, Window};
+
+use geometry::{DEPTH_FIELD_BITS, DEPTH_SHIFT, ScreenTriangle, View, regions, triangle_exprs};
+
+/// The polygon program over one scene.
+pub struct Polygons {
+    scene: std::rc::Rc<TriangleScene>,
+}
+
+impl Polygons {
+    pub fn new(scene: TriangleScene) -> Polygons {
+        Polygons {
+            scene: std::rc::Rc::new(scene),
+        }
+    }
+
+    pub fn scene(&self) -> &TriangleScene {
+        &self.scene
+    }
+}
+
+/// The pixel-memory layout of a region: colour (R, G, B, 8 bits each, R lowest) and depth.
+#[derive(Clone, Copy, Debug)]
+pub struct Fields {
+    pub rgb: Field,
+    pub channels: [Field; 3],
+    pub depth: Field,
+}
+
+impl Fields {
+    pub fn allocate(memory_bits: u32) -> Result<Fields, ProgramError> {
+        let mut l = PixelLayout::new(memory_bits);
+        let err = |e: pxpl5_renderer::LayoutError| ProgramError(e.to_string());
+        let rgb = l.alloc("rgb", 24, false).map_err(err)?;
+        let depth = l.alloc("depth", DEPTH_FIELD_BITS, true).map_err(err)?;
+        let channel = |k: u32| Field {
+            offset: rgb.offset + 8 * k,
+            bits: 8,
+            signed: false,
+        };
+        Ok(Fields {
+            rgb,
+            channels: [channel(0), channel(1), channel(2)],
+            depth,
+        })
+    }
+}
+
+/// The farthest depth: the depth field's largest value.
+pub fn depth_clear(f: &Fields) -> u64 {
+    (1u64 << (f.depth.bits - 1)) - 1
+}
+
+/// The screen layout: region size, columns and rows of regions.
+#[derive(Clone, Copy, Debug)]
+pub struct Screen {
+    pub side: u32,
+    pub columns: u32,
+    pub rows: u32,
+}
+
+impl Screen {
+    pub fn new(width: u32, height: u32, side: u32) -> Screen {
+        Screen {
+            side,
+            columns: width.div_ceil(side),
+            rows: height.div_ceil(side),
+        }
+    }
+    pub fn regions(&self) -> u32 {
+        self.columns * self.rows
+    }
+    /// Lower-left pixel of region k (row-major from the bottom-left).
+    pub fn origin(&self, k: u32) -> (u32, u32) {
+        (
+            (k % self.columns) * self.side,
+            (k / self.columns) * self.side,
+        )
+    }
+}
+
+/// The commands that clear a region.
+pub fn clear_commands(f: &Fields) -> Vec<Command> {
+    vec![
+        Command::SetOrigin { x: 0, y: 0 },
+        Command::enable_all(),
+        Command::WriteConst {
+            dst: f.depth,
+            value: depth_clear(f),
+        },
+        Command::WriteConst {
+            dst: f.rgb,
+            value: 0,
+        },
+    ]
+}
+
+/// The commands that draw one triangle in a region, or none if it misses the region.
+pub fn triangle_commands(
+    t: &ScreenTriangle,
+    origin: (u32, u32),
+    side: u32,
+    f: &Fields,
+    format: pxpl5_config::FixedFormat,
+) -> Vec<Command> {
+    let Some(e) = triangle_exprs(t, origin.0, origin.1, side, format) else {
+        return Vec::new();
+    };
+    let mut out = vec![Command::enable_all()];
+    for (expr, window) in &e.edges {
+        out.push(Command::QeeSign {
+            expr: *expr,
+            window: *window,
+            dst: Bit::Enable,
+            combine: LogicOp::AND,
+        });
+    }
+    let depth_window = Window {
+        shift: DEPTH_SHIFT,
+        bits: f.depth.bits,
+    };
+    out.push(Command::QeeCompare {
+        expr: e.depth,
+        window: depth_window,
+        field: f.depth,
+        cmp: Cmp::Lt,
+        dst: Bit::Enable,
+        combine: LogicOp::AND,
+    });
+    out.push(Command::QeeStore {
+        expr: e.depth,
+        window: depth_window,
+        dst: f.depth,
+    });
+    let colour_window = Window {
+        shift: format.frac_bits,
+        bits: 8,
+    };
+    for (k, expr) in e.colours.iter().enumerate() {
+        out.push(Command::QeeStore {
+            expr: *expr,
+            window: colour_window,
+            dst: f.channels[k],
+        });
+    }
+    out
+}
+
+/// Values per triangle in a distribute message: its index, 3 x (x, y, z), 3 x (r, g, b).
+const VALUES_PER_TRIANGLE: usize = 19;
+/// Ring words per triangle on the ring ([assumed]: 32-bit floats for the 18 numbers plus one
+/// word for the index).
+const WORDS_PER_TRIANGLE: u32 = 19;
+
+fn encode(ts: &[ScreenTriangle]) -> Vec<f64> {
+    let mut v = Vec::with_capacity(ts.len() * VALUES_PER_TRIANGLE);
+    for t in ts {
+        v.push(t.source as f64);
+        for p in t.xyz {
+            v.extend(p);
+        }
+        for c in t.rgb {
+            v.extend(c);
+        }
+    }
+    v
+}
+
+fn decode(v: &[f64]) -> Vec<ScreenTriangle> {
+    v.chunks(VALUES_PER_TRIANGLE)
+        .map(|c| ScreenTriangle {
+            source: c[0] as usize,
+            xyz: [[c[1], c[2], c[3]], [c[4], c[5], c[6]], [c[7], c[8], c[9]]],
+            rgb: [
+                [c[10], c[11], c[12]],
+                [c[13], c[14], c[15]],
+                [c[16], c[17], c[18]],
+            ],
+        })
+        .collect()
+}
+
+impl Program for Polygons {
+    fn name(&self) -> &str {
+        "polygons"
+    }
+
+    fn gp_main(&self, gp: Gp) -> GpFuture {
+        let scene = self.scene.clone();
+        Box::pin(async move { gp_main(gp, &scene).await })
+    }
+}
+
+async fn gp_main(gp: Gp, scene: &TriangleScene) -> Result<(), ProgramError> {
+    let (g, gps, renderers) = (gp.index(), gp.gp_count(), gp.renderer_count());
+    let rc = gp.renderer_config().clone();
+    let side = rc.width.min(rc.height);
+    let (fw, fh) = gp.frame_buffer_size();
+    let screen = Screen::new(fw, fh, side);
+    let fields = Fields::allocate(rc.pixel_memory_bits)?;
+    let format = rc.qee.coefficient_format;
+    let drivers: Vec<u32> = (0..gps.min(renderers)).collect();
+    let driver_of_region = |k: u32| (k % renderers) % gps;
+
+    // 1. Transform, clip, project and bin this GP's triangles.
+    gp.phase("transform");
+    let view = View::new(&scene.camera, fw, fh);
+    let mine: Vec<usize> = (g as usize..scene.triangles.len())
+        .step_by(gps as usize)
+        .collect();
+    let mut binned: Vec<Vec<ScreenTriangle>> = vec![Vec::new(); gps as usize];
+    for &i in &mine {
+        gp.compute(Op::VertexTransform, 3).await;
+        gp.compute(Op::ClipTest, 3).await;
+        for t in view.project(scene, i) {
+            gp.compute(Op::PolygonSetup, 1).await;
+            let mut owners: Vec<u32> = regions(&t, side, screen.columns, screen.rows)
+                .into_iter()
+                .map(|(c, r)| driver_of_region(r * screen.columns + c))
+                .collect();
+            owners.sort_unstable();
+            owners.dedup();
+            for o in owners {
+                binned[o as usize].push(t.clone());
+            }
+        }
+    }
+
+    // 2. Send each driving GP its triangles; collect ours.
+    gp.phase("distribute");
+    for &d in &drivers {
+        if d == g {
+            continue;
+        }
+        let ts = &binned[d as usize];
+        let payload = Payload::Data {
+            tag: u64::from(g),
+            values: encode(ts),
+            words: 1 + WORDS_PER_TRIANGLE * ts.len() as u32,
+        };
+        send_data(&gp, Unit::Gp(d), payload).await;
+    }
+    if !drivers.contains(&g) {
+        gp.phase("done");
+        return Ok(());
+    }
+    let mut mine_binned = std::mem::take(&mut binned[g as usize]);
+    // Every other GP sends this one its triangles, the last message marked.
+    let pending = gps - 1;
+    let mut done_senders = 0u32;
+    while done_senders < pending {
+        let m = gp.recv().await;
+        if let Payload::Data { values, tag, .. } = m.payload {
+            mine_binned.extend(decode(&values));
+            if tag & LAST_PACKET != 0 {
+                done_senders += 1;
+            }
+        }
+    }
+    mine_binned.sort_by_key(|t| t.source);
+
+    // 3. Render the regions of this GP's Renderers, in order.
+    gp.phase("render");
+    let max_words = 1000u32; // stay under the ring's default max_message_words of 1,024
+    let coefficient_bits = format.total_bits();
+    let word_bits = gp.ring_word_bits();
+    for r in (0..renderers).filter(|r| r % gps == g) {
+        for k in (0..screen.regions()).filter(|k| k % renderers == r) {
+            let origin = screen.origin(k);
+            let mut batch = clear_commands(&fields);
+            let mut batch_words: u32 = batch
+                .iter()
+                .map(|c| c.words(coefficient_bits, word_bits))
+                .sum();
+            for t in &mine_binned {
+                if !regions(t, side, screen.columns, screen.rows)
+                    .contains(&(origin.0 / side, origin.1 / side))
+                {
+                    continue;
+                }
+                gp.compute(Op::EdgeSetup, 7).await;
+                let cmds = triangle_commands(t, origin, side, &fields, format);
+                let words: u32 = cmds
+                    .iter()
+                    .map(|c| c.words(coefficient_bits, word_bits))
+                    .sum();
+                if batch_words + words > max_words && !batch.is_empty() {
+                    gp.send_commands(r, std::mem::take(&mut batch)).await;
+                    batch_words = 0;
+                }
+                batch.extend(cmds);
+                batch_words += words;
+            }
+            let w = fw.saturating_sub(origin.0).min(side);
+            let h = fh.saturating_sub(origin.1).min(side);
+            batch.push(Command::Readback {
+                field: fields.rgb,
+                rect: Rect {
+                    x: 0,
+                    y: 0,
+                    width: w,
+                    height: h,
+                },
+                dest: Unit::FrameBuffer.encode(),
+                tag: origin.0 | (origin.1 << 16),
+            });
+            gp.send_commands(r, batch).await;
+        }
+    }
+    gp.phase("done");
+    Ok(())
+}
+
+/// Marks the last message of a GP's distribution to one driver.
+const LAST_PACKET: u64 = 1 << 63;
+
+/// Send program data in messages of at most ~1,000 words (the ring's queues hold 2,048).
+async fn send_data(gp: &Gp, to: Unit, payload: Payload) {
+    let Payload::Data { tag, values, .. } = payload else {
+        unreachable!("send_data sends data")
+    };
+    let per = 50 * VALUES_PER_TRIANGLE;
+    let chunks: Vec<&[f64]> = if values.is_empty() {
+        vec![&[]]
+    } else {
+        values.chunks(per).collect()
+    };
+    let n = chunks.len();
+    for (i, c) in chunks.into_iter().enumerate() {
+        let last = if i + 1 == n { LAST_PACKET } else { 0 };
+        let triangles = (c.len() / VALUES_PER_TRIANGLE) as u32;
+        gp.send(
+            to,
+            Payload::Data {
+                tag: tag | last,
+                values: c.to_vec(),
+                words: 1 + WORDS_PER_TRIANGLE * triangles,
+            },
+        )
+        .await;
+    }
+}
