@@ -1,7 +1,8 @@
 //! The `pxpl5` command: the user's entry to the Pixel-Planes 5 simulator.
 //!
-//! Subcommands: `config check|show` (machine configs), `bench renderer` (the Renderer's simulation
-//! speed at each fidelity level). With no subcommand it runs `bench renderer` on the embedded seed
+//! Subcommands: `run` (a program on a machine, with stats, pictures and traces), `config
+//! check|show` (machine configs), `bench renderer` (the Renderer's simulation speed at each
+//! fidelity level). With no subcommand it runs `bench renderer` on the embedded seed
 //! machine at every level, which needs no file and shows the simulator working.
 //!
 //! Exit codes: 0 success; 2 a user's mistake (bad config, bad flag, unwritable output), reported
@@ -10,6 +11,7 @@
 
 mod bench;
 mod config_cmd;
+mod run;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -33,6 +35,9 @@ enum Command {
     /// Validate and print machine configs (RON files in machine-configs/).
     #[command(subcommand)]
     Config(ConfigCommand),
+    /// Run a program on a machine: writes DIR/frame.png, DIR/stats.json and DIR/config.ron,
+    /// prints the stats table; --trace and --vcd record simulated time.
+    Run(run::RunArgs),
     /// Measure simulation speed on a fixed, documented workload.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -81,6 +86,7 @@ fn main() -> ExitCode {
         Some(Command::Config(ConfigCommand::Check { files })) => config_cmd::check(&files),
         Some(Command::Config(ConfigCommand::Show { file })) => config_cmd::show(file.as_deref()),
         Some(Command::Bench(BenchCommand::Renderer(args))) => bench::renderer(&args),
+        Some(Command::Run(args)) => run::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
