@@ -1,6 +1,10 @@
-//! Cycle-count goldens of the Renderer: the benchmark's hemisphere mix on every shipped machine
-//! config, run at both fidelity levels. Each golden records the Renderer cycles, the per-kind
-//! command counts and cycles, and the digest of the board's final state.
+//! Cycle-count goldens, one file per case in `tests/snapshots/`:
+//! - the Renderer: the benchmark's hemisphere mix on every shipped machine config, at both
+//!   fidelity levels; each golden records the Renderer cycles, the per-kind command counts and
+//!   cycles, and the digest of the board's final state;
+//! - the machine: the polygon program on `programs/polygons/scenes/small.ron` on every shipped
+//!   config; each golden is the run's stats.json (simulated figures only), plus a digest of the
+//!   frame.
 //!
 //! A golden changes only on purpose, in a commit whose message says why the timing changed
 //! (`INSTA_UPDATE=always cargo test -p pxpl5-tests --test goldens` rewrites them).
@@ -68,4 +72,41 @@ fn renderer_mix_pxpl5_1989() {
 #[test]
 fn renderer_mix_minimal() {
     insta::assert_snapshot!(golden("minimal.ron"));
+}
+
+fn polygons_golden(config_file: &str) -> String {
+    use pxpl5_machine::{Machine, Recorder, RunOptions};
+    let root = workspace_root();
+    let cfg = pxpl5_config::load_file(&root.join("machine-configs").join(config_file))
+        .expect("shipped configs are valid");
+    let scene =
+        pxpl5_config::scene::load_triangle_scene(&root.join("programs/polygons/scenes/small.ron"))
+            .expect("the small scene is valid");
+    let program = pxpl5_polygons::Polygons::new(scene);
+    let result = Machine::new(&cfg, &program, RunOptions::default(), Recorder::default())
+        .expect("builds")
+        .run()
+        .expect("runs");
+    let frame: u64 = result.frame.rgb.iter().fold(0xcbf29ce484222325, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x100000001b3)
+    });
+    format!(
+        "frame fnv1a64: {frame:016x}\n{}",
+        serde_json::to_string_pretty(&result.stats.to_json()).expect("json")
+    )
+}
+
+#[test]
+fn polygons_small_seed_tr89_002() {
+    insta::assert_snapshot!(polygons_golden("seed-tr89-002.ron"));
+}
+
+#[test]
+fn polygons_small_pxpl5_1989() {
+    insta::assert_snapshot!(polygons_golden("pxpl5-1989.ron"));
+}
+
+#[test]
+fn polygons_small_minimal() {
+    insta::assert_snapshot!(polygons_golden("minimal.ron"));
 }

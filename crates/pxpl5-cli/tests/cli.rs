@@ -126,3 +126,115 @@ fn help_explains_each_subcommand() {
     let out = pxpl5(&["frobnicate"]);
     assert_eq!(out.status.code(), Some(2));
 }
+
+fn out_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("pxpl5-cli-run-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+fn run_small(out: &std::path::Path) -> Output {
+    pxpl5(&[
+        "run",
+        "--config",
+        "machine-configs/minimal.ron",
+        "--scene",
+        "programs/polygons/scenes/small.ron",
+        "--out",
+        out.to_str().unwrap(),
+        "--trace",
+        out.join("trace.json").to_str().unwrap(),
+        "--vcd",
+        out.join("trace.vcd").to_str().unwrap(),
+    ])
+}
+
+#[test]
+fn run_writes_outputs_and_is_deterministic() {
+    let (a, b) = (out_dir("a"), out_dir("b"));
+    for d in [&a, &b] {
+        let out = run_small(d);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        let stdout = text(&out.stdout);
+        assert!(
+            stdout.contains("triangles per simulated second"),
+            "{stdout}"
+        );
+        assert!(stdout.contains("1,000,000 Phong-shaded"), "{stdout}");
+    }
+    for f in [
+        "stats.json",
+        "config.ron",
+        "frame.png",
+        "trace.json",
+        "trace.vcd",
+    ] {
+        let x = std::fs::read(a.join(f)).unwrap();
+        let y = std::fs::read(b.join(f)).unwrap();
+        assert!(!x.is_empty(), "{f} is empty");
+        assert!(x == y, "{f} differs between two identical runs");
+    }
+    let stats: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(a.join("stats.json")).unwrap()).unwrap();
+    assert_eq!(stats["program"], "polygons");
+    assert!(stats["simulated_ps"].as_u64().unwrap() > 0);
+    let json = std::fs::read_to_string(a.join("stats.json")).unwrap();
+    assert!(
+        !json.contains("host"),
+        "host figures leaked into stats.json"
+    );
+    let trace: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(a.join("trace.json")).unwrap()).unwrap();
+    assert!(trace["traceEvents"].as_array().unwrap().len() > 50);
+    let vcd = std::fs::read_to_string(a.join("trace.vcd")).unwrap();
+    assert!(vcd.contains("$timescale 1 ps $end") && vcd.contains("$enddefinitions"));
+    let png = std::fs::read(a.join("frame.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+}
+
+#[test]
+fn run_rejects_bad_input_without_writing() {
+    let good = std::fs::read_to_string(root().join("programs/polygons/scenes/small.ron")).unwrap();
+    let nan = temp_file(
+        "nan.ron",
+        &good.replacen("(-9.0, -7.0, -6.0)", "(NaN, -7.0, -6.0)", 1),
+    );
+    let flat = temp_file(
+        "flat.ron",
+        &good.replacen("(0.0, 3.0, 0.0)", "(-3.0, -2.0, -1.0)", 1),
+    );
+    for (scene, needle) in [(&nan, "triangles[0].vertices[0]"), (&flat, "triangles[2]")] {
+        let out_d = out_dir("bad");
+        let out = pxpl5(&[
+            "run",
+            "--scene",
+            scene.to_str().unwrap(),
+            "--out",
+            out_d.to_str().unwrap(),
+        ]);
+        assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+        assert!(text(&out.stderr).contains(needle), "{}", text(&out.stderr));
+        assert!(!out_d.join("stats.json").exists(), "half-written output");
+    }
+    let out = pxpl5(&["run", "--program", "teapots"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("teapots"));
+    // An output directory under a regular file cannot be created.
+    let file = temp_file("not-a-dir", "x");
+    let out = pxpl5(&[
+        "run",
+        "--triangles",
+        "3",
+        "--out",
+        file.join("sub").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("not-a-dir"),
+        "{}",
+        text(&out.stderr)
+    );
+    let out = pxpl5(&["run", "--triangles", "3", "--trace-window", "5ms..1ms"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("--trace-window"));
+}

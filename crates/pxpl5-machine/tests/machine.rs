@@ -1,0 +1,1013 @@
+//! Integration tests of the machine: small programs on small machines, with exact simulated
+//! values derived by hand from the timing rules (GP cost table, the ring's idle-latency formula
+//! and token rules from `pxpl5_ring`'s crate doc, the Renderer cycle table), plus the run errors
+//! (deadlock, time limit, program error), determinism of stats and traces, fidelity independence
+//! and per-pair message ordering.
+
+use std::cell::RefCell;
+use std::collections::BTreeSet;
+use std::rc::Rc;
+
+use pxpl5_config::MachineConfig;
+use pxpl5_machine::{
+    Gp, GpFuture, Machine, Message, Op, Payload, Program, ProgramError, Recorder, RunError,
+    RunOptions, RunResult, Unit, node_order,
+};
+use pxpl5_renderer::{Bit, Command, Fidelity, Field, QeeExpr, Rect, Window, cycle_cost, readback};
+use pxpl5_ring::{idle_delivery, idle_latency};
+use pxpl5_sim::{ClockDomain, Cycles, Tick};
+use pxpl5_trace::TraceWindow;
+use serde_json::Value;
+
+// ---------------------------------------------------------------------------------------------
+// Helpers
+// ---------------------------------------------------------------------------------------------
+
+/// A program made of one closure: GP `gp.index()` runs `f(gp)`.
+struct FnProgram<F> {
+    name: &'static str,
+    f: F,
+}
+
+impl<F: Fn(Gp) -> GpFuture> Program for FnProgram<F> {
+    fn name(&self) -> &str {
+        self.name
+    }
+    fn gp_main(&self, gp: Gp) -> GpFuture {
+        (self.f)(gp)
+    }
+}
+
+fn program<F: Fn(Gp) -> GpFuture>(name: &'static str, f: F) -> FnProgram<F> {
+    FnProgram { name, f }
+}
+
+/// `machine-configs/minimal.ron`: 1 GP, 1 Renderer, 1 ring channel, seed timings.
+fn minimal() -> MachineConfig {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../machine-configs/minimal.ron"
+    );
+    pxpl5_config::load_file(std::path::Path::new(path)).expect("minimal.ron loads")
+}
+
+/// `minimal` with some counts changed, checked by the config validator.
+fn machine(gps: u32, renderers: u32, channels: u32) -> MachineConfig {
+    let mut cfg = minimal();
+    cfg.gp.count = gps;
+    cfg.renderer.count = renderers;
+    cfg.ring.channels = channels;
+    pxpl5_config::check("test machine", &cfg).expect("test machine is valid");
+    cfg
+}
+
+fn run_with(
+    cfg: &MachineConfig,
+    p: &dyn Program,
+    fidelity: Fidelity,
+    max_time: Tick,
+    recorder: Recorder,
+) -> Result<RunResult, RunError> {
+    Machine::new(cfg, p, RunOptions { fidelity, max_time }, recorder)?.run()
+}
+
+fn run(cfg: &MachineConfig, p: &dyn Program) -> Result<RunResult, RunError> {
+    run_with(
+        cfg,
+        p,
+        Fidelity::Word,
+        RunOptions::default().max_time,
+        Recorder::new(None, None),
+    )
+}
+
+fn gp_clock(cfg: &MachineConfig) -> ClockDomain {
+    ClockDomain::from_hz(cfg.gp.clock_hz).unwrap()
+}
+
+fn ring_clock(cfg: &MachineConfig) -> ClockDomain {
+    ClockDomain::from_hz(cfg.ring.channel_clock_hz).unwrap()
+}
+
+/// Ring position of a unit.
+fn pos(cfg: &MachineConfig, u: Unit) -> u32 {
+    node_order(cfg).iter().position(|x| *x == u).unwrap() as u32
+}
+
+/// Hops from `a` to `b` in the direction of data flow.
+fn hops(cfg: &MachineConfig, a: Unit, b: Unit) -> u32 {
+    let n = node_order(cfg).len() as u32;
+    (pos(cfg, b) + n - pos(cfg, a)) % n
+}
+
+/// The token wait of the ring doc ("idle latency") on a ring where no token has been captured
+/// yet: the token of channel `c` stands at node `floor(c * n / C)` at clock 0 and visits node
+/// `q` at clocks `hops(start, q) * h + m * n * h`; `w` is the clocks from `eligible` to the first
+/// visit of any channel's token to `node` at or after it.
+fn fresh_token_wait(cfg: &MachineConfig, node: u32, eligible: u64) -> u64 {
+    let n = node_order(cfg).len() as u64;
+    let channels = u64::from(cfg.ring.channels);
+    let h = u64::from(cfg.ring.hop_latency_cycles);
+    let lap = n * h;
+    (0..channels)
+        .map(|c| {
+            let start = c * n / channels;
+            let first = (u64::from(node) + n - start) % n * h;
+            let visit = if first >= eligible {
+                first
+            } else {
+                first + (eligible - first).div_ceil(lap) * lap
+            };
+            visit - eligible
+        })
+        .min()
+        .unwrap()
+}
+
+fn field(offset: u32, bits: u32) -> Field {
+    Field {
+        offset,
+        bits,
+        signed: false,
+    }
+}
+
+fn data(tag: u64, words: u32) -> Payload {
+    Payload::Data {
+        tag,
+        values: vec![tag as f64],
+        words,
+    }
+}
+
+fn chrome_bytes(r: &RunResult) -> Vec<u8> {
+    let mut out = Vec::new();
+    assert!(r.recorder.write_chrome(&mut out).unwrap());
+    out
+}
+
+fn vcd_bytes(r: &RunResult) -> Vec<u8> {
+    let mut out = Vec::new();
+    assert!(r.recorder.write_vcd(&mut out).unwrap());
+    out
+}
+
+// ---------------------------------------------------------------------------------------------
+// 1. Compute only
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn compute_only_takes_exactly_the_cycles_charged() {
+    // The seed machine (16 GPs) and the minimal one (1 GP).
+    for cfg in [pxpl5_config::default_config(), minimal()] {
+        let p = program("compute", |gp| {
+            Box::pin(async move {
+                gp.compute_cycles(Cycles(1000)).await;
+                Ok(())
+            })
+        });
+        let r = run(&cfg, &p).unwrap();
+        // 1000 i860 cycles at 40 MHz (25,000 ps each).
+        assert_eq!(gp_clock(&cfg).period(), Tick(25_000));
+        assert_eq!(r.stats.end, Tick(25_000_000));
+        assert_eq!(r.stats.gps.len(), cfg.gp.count as usize);
+        for g in &r.stats.gps {
+            assert_eq!(g.busy, Cycles(1000), "GP {}", g.gp);
+            assert_eq!(g.idle, Cycles(0), "GP {}", g.gp);
+            assert_eq!(g.finished, Tick(25_000_000));
+            assert_eq!((g.messages_sent, g.messages_received), (0, 0));
+        }
+        for rs in &r.stats.renderers {
+            // The Renderers (also 40 MHz) idled the whole run.
+            assert_eq!(
+                (rs.busy, rs.idle, rs.commands),
+                (Cycles(0), Cycles(1000), 0)
+            );
+        }
+        let j = r.stats.to_json();
+        assert_eq!(j["simulated_ps"], 25_000_000);
+        assert_eq!(j["gps"][0]["busy_percent"], 100.0);
+        // 25 us of a 20 MHz channel clock; no traffic.
+        assert_eq!(j["ring"]["elapsed_clocks"], 500);
+        assert_eq!(j["ring"]["messages"], 0);
+        assert_eq!(j["ring"]["token_wait_clocks"], 0);
+        assert_eq!(j["frame_buffer_pixel_writes"], 0);
+    }
+}
+
+#[test]
+fn compute_op_is_priced_by_the_cost_table() {
+    let cfg = machine(2, 1, 1);
+    let p = program("ops", |gp| {
+        Box::pin(async move {
+            if gp.index() == 0 {
+                gp.compute(Op::VertexTransform, 10).await; // 10 * 24
+            } else {
+                gp.compute(Op::PolygonSetup, 3).await; // 3 * 100
+                gp.compute(Op::ClipTest, 0).await; // free, no wait
+            }
+            Ok(())
+        })
+    });
+    let r = run(&cfg, &p).unwrap();
+    assert_eq!(r.stats.gps[0].busy, Cycles(240));
+    assert_eq!(r.stats.gps[0].finished, Tick(240 * 25_000));
+    assert_eq!(r.stats.gps[1].busy, Cycles(300));
+    assert_eq!(r.stats.gps[0].idle, Cycles(60));
+    assert_eq!(r.stats.end, Tick(300 * 25_000));
+}
+
+// ---------------------------------------------------------------------------------------------
+// 2. One message GP -> GP on an idle ring
+// ---------------------------------------------------------------------------------------------
+
+/// GP `from` sends one Data message of `words` words at time 0; GP `to` waits for it from time
+/// 0. Returns the message, the receiver's time after `recv`, and the run.
+fn one_message(cfg: &MachineConfig, from: u32, to: u32, words: u32) -> (Message, Tick, RunResult) {
+    let got: Rc<RefCell<Option<(Message, Tick)>>> = Rc::default();
+    let g2 = got.clone();
+    let p = program("one-message", move |gp| {
+        let got = g2.clone();
+        Box::pin(async move {
+            if gp.index() == from {
+                gp.send(Unit::Gp(to), data(42, words)).await;
+            } else if gp.index() == to {
+                let m = gp.recv().await;
+                *got.borrow_mut() = Some((m, gp.now()));
+            }
+            Ok(())
+        })
+    });
+    let r = run(cfg, &p).unwrap();
+    let (m, t) = got.borrow_mut().take().expect("received");
+    (m, t, r)
+}
+
+#[test]
+fn one_message_arrives_at_send_cost_plus_idle_ring_latency_plus_receive_cost() {
+    let mut checked = 0;
+    for channels in [1, 4] {
+        for hop in [1, 3] {
+            let mut cfg = machine(2, 1, channels);
+            cfg.ring.hop_latency_cycles = hop;
+            // Interleaved: GP 0, Renderer 0, GP 1, frame buffer, host.
+            assert_eq!(
+                node_order(&cfg),
+                vec![
+                    Unit::Gp(0),
+                    Unit::Renderer(0),
+                    Unit::Gp(1),
+                    Unit::FrameBuffer,
+                    Unit::Host
+                ]
+            );
+            for (from, to) in [(0, 1), (1, 0)] {
+                for words in [1, 100, 1024] {
+                    let (m, received, r) = one_message(&cfg, from, to, words);
+                    let (gc, rc) = (gp_clock(&cfg), ring_clock(&cfg));
+                    let costs = &cfg.gp.costs;
+                    // The sender is busy for message_send, then the ring takes the message.
+                    let sent = gc.to_ticks(Cycles(costs.message_send));
+                    assert_eq!(sent, Tick(1_250_000));
+                    let eligible = rc.cycles_ceil(sent).0;
+                    assert_eq!(eligible, 25);
+                    let k = hops(&cfg, Unit::Gp(from), Unit::Gp(to));
+                    let w = fresh_token_wait(&cfg, pos(&cfg, Unit::Gp(from)), eligible);
+                    let delivered = idle_delivery(&cfg.ring, rc, sent, words, k, Cycles(w));
+                    // Spelled out: next edge + (w + header + payload + k*h) clocks.
+                    assert_eq!(
+                        delivered,
+                        rc.to_ticks(
+                            Cycles(eligible) + idle_latency(&cfg.ring, words, k, Cycles(w))
+                        )
+                    );
+                    assert_eq!(
+                        delivered.0,
+                        (eligible + w + 1 + u64::from(words) + u64::from(k * hop)) * 50_000
+                    );
+                    let ctx = format!("{channels} ch, hop {hop}, GP {from} -> GP {to}, {words} w");
+                    assert_eq!(m.at, delivered, "{ctx}");
+                    assert_eq!(m.from, Unit::Gp(from), "{ctx}");
+                    assert_eq!(m.payload, data(42, words), "{ctx}");
+                    let expect_rx = delivered + gc.to_ticks(Cycles(costs.message_receive));
+                    assert_eq!(received, expect_rx, "{ctx}");
+                    // The receiver finishing is the end of the run.
+                    assert_eq!(r.stats.end, expect_rx, "{ctx}");
+                    let s = &r.stats;
+                    assert_eq!(s.gps[from as usize].busy, Cycles(costs.message_send));
+                    assert_eq!(s.gps[from as usize].finished, sent);
+                    assert_eq!(s.gps[from as usize].messages_sent, 1);
+                    assert_eq!(s.gps[to as usize].busy, Cycles(costs.message_receive));
+                    assert_eq!(s.gps[to as usize].messages_received, 1);
+                    let j = s.to_json();
+                    assert_eq!(j["ring"]["token_wait_clocks"], w, "{ctx}");
+                    assert_eq!(j["ring"]["payload_words"], words);
+                    assert_eq!(j["ring"]["header_words"], 1);
+                    assert_eq!(j["ring"]["messages"], 1);
+                    checked += 1;
+                }
+            }
+        }
+    }
+    assert_eq!(checked, 24);
+
+    // Golden values of one case, decomposed: 1 channel, hop 1, GP 1 (node 2) -> GP 0 (node 0),
+    // 100 words. Sent at 50 i860 cycles = 1.25 us = ring edge 25. The token starts at node 0 at
+    // clock 0 and visits node 2 at 2, 7, ..., 27: w = 2. Hops 2 -> 0 on 5 nodes: 3. Delivered
+    // at edge 25 + 2 + 1 + 100 + 3 = 131 = 6.55 us; received after 50 more i860 cycles: 7.8 us.
+    let cfg = machine(2, 1, 1);
+    let (m, received, r) = one_message(&cfg, 1, 0, 100);
+    assert_eq!(m.at, Tick(6_550_000));
+    assert_eq!(received, Tick(7_800_000));
+    assert_eq!(r.stats.to_json()["ring"]["token_wait_clocks"], 2);
+}
+
+// ---------------------------------------------------------------------------------------------
+// 3. Renderer commands and a readback
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn renderer_busy_is_the_sum_of_cycle_costs_and_readback_returns_the_values_written() {
+    let cfg = minimal();
+    let writes = vec![
+        Command::WriteConst {
+            dst: field(0, 8),
+            value: 0xFF,
+        },
+        // Overwrites the first: commands run in order.
+        Command::WriteConst {
+            dst: field(0, 8),
+            value: 0x11,
+        },
+        Command::WriteConst {
+            dst: field(8, 8),
+            value: 0x22,
+        },
+        Command::WriteConst {
+            dst: field(16, 8),
+            value: 0x33,
+        },
+        Command::WriteConst {
+            dst: field(24, 8),
+            value: 0x44,
+        },
+        Command::WriteConst {
+            dst: field(40, 16),
+            value: 0xBEEF,
+        },
+    ];
+    let rect = Rect {
+        x: 3,
+        y: 5,
+        width: 4,
+        height: 2,
+    };
+    let readback_cmd = Command::Readback {
+        field: field(0, 32),
+        rect,
+        dest: Unit::Gp(0).encode(),
+        tag: 7,
+    };
+    let got: Rc<RefCell<Option<(Message, Tick)>>> = Rc::default();
+    let (w2, rb2, got2) = (writes.clone(), readback_cmd.clone(), got.clone());
+    let p = program("readback", move |gp| {
+        let (writes, rb, got) = (w2.clone(), rb2.clone(), got2.clone());
+        Box::pin(async move {
+            gp.send_commands(0, writes).await;
+            gp.send_commands(0, vec![rb]).await;
+            let m = gp.recv().await;
+            *got.borrow_mut() = Some((m, gp.now()));
+            Ok(())
+        })
+    });
+    let r = run(&cfg, &p).unwrap();
+
+    // Busy cycles: the cycle table, command by command.
+    let all: Vec<Command> = writes.iter().cloned().chain([readback_cmd]).collect();
+    let sum: u64 = all.iter().map(|c| cycle_cost(c, &cfg.renderer).0).sum();
+    // igc_overhead 20 + bits * per_bit: five 8-bit writes (28), one 16-bit write (36), and the
+    // readback of 32 bits (20 + 32 * readback_per_bit = 52).
+    assert_eq!(sum, 5 * 28 + 36 + 52);
+    let rs = &r.stats.renderers[0];
+    assert_eq!(rs.busy, Cycles(sum));
+    assert_eq!(rs.commands, 7);
+    assert_eq!(rs.board.busy, Cycles(sum));
+    assert_eq!(rs.board.by_kind["write_const"].count, 6);
+    assert_eq!(rs.board.by_kind["write_const"].cycles, 176);
+    assert_eq!(rs.board.by_kind["readback"].cycles, 52);
+    let j = r.stats.to_json();
+    assert_eq!(j["renderers"][0]["busy_cycles"], 228);
+    assert_eq!(j["renderers"][0]["by_kind"]["readback"]["count"], 1);
+
+    // The values: every pixel's bits 0..32 are 0x44_33_22_11.
+    let (m, received) = got.borrow_mut().take().unwrap();
+    assert_eq!(m.from, Unit::Renderer(0));
+    let Payload::Pixels {
+        tag,
+        rect: got_rect,
+        bits,
+        words,
+    } = m.payload
+    else {
+        panic!("expected pixels, got {:?}", m.payload);
+    };
+    assert_eq!((tag, got_rect, bits), (7, rect, 32));
+    assert_eq!(words, vec![0x4433_2211; 8]);
+    assert_eq!(readback::unpack(&words, 32, 32, 8), vec![0x4433_2211; 8]);
+
+    // Golden timing (minimal: nodes GP 0, Renderer 0, frame buffer, host; one channel whose
+    // token starts at node 0, lap 4 clocks of 50 ns; i860 and Renderer 25 ns):
+    // - GP 0 encodes 6 commands (24 cycles) and pays message_send (50): ring edge 74 * 25 / 50 =
+    //   37 ... precisely 1.85 us? No: 24 + 50 = 74 cycles = 1.85 us = edge 37. The token visits
+    //   node 0 at 36, 40: w = 3, 13 words (6 x 2), 1 hop: delivered at 40 + 13 + 1 = 54 = 2.7 us.
+    // The remaining figures are golden values checked against the same rules in the reply.
+    assert_eq!(received, m.at + Tick(50 * 25_000));
+    assert_eq!(r.stats.gps[0].busy, Cycles(24 + 50 + 4 + 50 + 50));
+    assert_eq!(r.stats.end, received);
+    assert_eq!(r.stats.frame_writes, 0);
+}
+
+// ---------------------------------------------------------------------------------------------
+// 4. Ring contention
+// ---------------------------------------------------------------------------------------------
+
+/// GP 0 and GP 1 each send a 1,000-word message to GP 2 at time 0; GP 2 records the arrivals.
+fn two_senders(channels: u32) -> (Vec<Message>, RunResult, MachineConfig) {
+    let cfg = machine(3, 1, channels);
+    let got: Rc<RefCell<Vec<Message>>> = Rc::default();
+    let g2 = got.clone();
+    let p = program("contention", move |gp| {
+        let got = g2.clone();
+        Box::pin(async move {
+            match gp.index() {
+                0 | 1 => {
+                    gp.send(Unit::Gp(2), data(u64::from(gp.index()), 1000))
+                        .await
+                }
+                _ => {
+                    for _ in 0..2 {
+                        let m = gp.recv().await;
+                        got.borrow_mut().push(m);
+                    }
+                }
+            }
+            Ok(())
+        })
+    });
+    let r = run(&cfg, &p).unwrap();
+    let got = got.borrow().clone();
+    (got, r, cfg)
+}
+
+#[test]
+fn one_channel_serialises_two_long_messages_and_four_channels_overlap_them() {
+    let ps = |clocks: u64| Tick(clocks * 50_000);
+    // Both messages: 1 header + 1,000 payload words = 1,001 clocks on a channel.
+    let transmission = ps(1001);
+
+    // One channel. Nodes: GP 0, Renderer 0, GP 1, GP 2, frame buffer, host (6, lap 6 clocks).
+    // Both sends are eligible at edge 25 (1.25 us). The token (from node 0 at clock 0) reaches
+    // node 2 (GP 1) first, at 26: GP 1 starts at 26 (w 1), its last word is sent at 1027 and
+    // arrives one hop on at 1028. The token, released at 1027, reaches node 0 at 1031: GP 0
+    // starts there (w 1031 - 25 = 1006) and its message arrives 3 hops on at 2032 + 3 = 2035.
+    let (got, r, cfg) = two_senders(1);
+    assert_eq!(
+        node_order(&cfg)[..4],
+        [Unit::Gp(0), Unit::Renderer(0), Unit::Gp(1), Unit::Gp(2)]
+    );
+    assert_eq!(got[0].from, Unit::Gp(1));
+    assert_eq!(got[1].from, Unit::Gp(0));
+    assert!(got[1].at >= got[0].at + transmission);
+    assert_eq!((got[0].at, got[1].at), (ps(1028), ps(2035)));
+    let j = r.stats.to_json();
+    let ring = &j["ring"];
+    assert_eq!(ring["token_wait_clocks"], 1007);
+    assert_eq!(ring["nodes"][0]["token_wait_clocks"], 1006);
+    assert_eq!(ring["nodes"][2]["token_wait_clocks"], 1);
+    assert!(ring["token_wait_clocks"].as_u64().unwrap() > 0);
+    // GP 2 receives the second at 2035 clocks = 101.75 us and is done 1.25 us later: 103 us =
+    // 2,060 clocks, of which the one channel was busy 2,002.
+    assert_eq!(r.stats.end, Tick(103_000_000));
+    assert_eq!(ring["elapsed_clocks"], 2060);
+    assert_eq!(ring["channels"][0]["busy_clocks"], 2002);
+    assert_eq!(ring["channels"][0]["utilisation_percent"], 97.18);
+
+    // Four channels: tokens start at nodes 0, 1, 3, 4. At 25 channel 1's token stands at node 2
+    // (1 + 4 * 6): GP 1 starts at once (w 0), arrives at 25 + 1001 + 1 = 1027; at 26 channel 3's
+    // stands at node 0 (4 + 22): GP 0 starts (w 1), arrives at 26 + 1001 + 3 = 1030.
+    let (got, r, _) = two_senders(4);
+    assert_eq!(got[0].from, Unit::Gp(1));
+    assert_eq!(got[1].from, Unit::Gp(0));
+    assert!(
+        got[1].at < got[0].at + transmission,
+        "the transmissions overlap"
+    );
+    assert!(
+        got[1].at - got[0].at <= ps(6),
+        "within one lap of each other"
+    );
+    assert_eq!((got[0].at, got[1].at), (ps(1027), ps(1030)));
+    let j = r.stats.to_json();
+    let ring = &j["ring"];
+    assert_eq!(ring["token_wait_clocks"], 1);
+    // GP 2: first received at 51.35 + 1.25 = 52.6 us, second (already there) at 53.85 us.
+    assert_eq!(r.stats.end, Tick(53_850_000));
+    assert_eq!(ring["elapsed_clocks"], 1077);
+    let busy: Vec<u64> = (0..4)
+        .map(|c| ring["channels"][c]["busy_clocks"].as_u64().unwrap())
+        .collect();
+    assert_eq!(busy, vec![0, 1001, 0, 1001]);
+    assert_eq!(ring["channels"][1]["utilisation_percent"], 92.94);
+    assert_eq!(ring["channels"][3]["utilisation_percent"], 92.94);
+}
+
+// ---------------------------------------------------------------------------------------------
+// 5-7. Run errors
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn waiting_for_a_message_nobody_sends_is_a_deadlock() {
+    let p = program("deadlock", |gp| {
+        Box::pin(async move {
+            gp.compute_cycles(Cycles(100)).await;
+            gp.recv().await;
+            Ok(())
+        })
+    });
+    let err = run(&minimal(), &p).err().expect("deadlock");
+    let text = err.to_string();
+    let RunError::Deadlock { at, waiting } = err else {
+        panic!("expected a deadlock, got {text}");
+    };
+    // 100 i860 cycles, then the wait.
+    assert_eq!(at, Tick(2_500_000));
+    assert!(waiting.contains("GP 0"), "{waiting}");
+    assert!(waiting.contains("waits for a message"), "{waiting}");
+    assert!(text.starts_with("deadlock at 2500000 ps"), "{text}");
+}
+
+#[test]
+fn computing_forever_hits_the_time_limit() {
+    let one_ms = Tick(1_000_000_000);
+    // Steps of 25 ms: the first wake-up already lies beyond 1 ms.
+    let p = program("forever", |gp| {
+        Box::pin(async move {
+            loop {
+                gp.compute_cycles(Cycles(1_000_000)).await;
+            }
+        })
+    });
+    let r = run_with(
+        &minimal(),
+        &p,
+        Fidelity::Word,
+        one_ms,
+        Recorder::new(None, None),
+    );
+    let Err(RunError::TimeLimit { limit, running }) = r else {
+        panic!("expected a time limit");
+    };
+    assert_eq!(limit, one_ms);
+    assert!(running.contains("GP 0: computing"), "{running}");
+
+    // Steps of 25 us: 40 complete by 1 ms exactly (an event at the limit still runs), the 41st
+    // would end beyond it.
+    let steps: Rc<RefCell<u64>> = Rc::default();
+    let s2 = steps.clone();
+    let p = program("forever-small", move |gp| {
+        let steps = s2.clone();
+        Box::pin(async move {
+            loop {
+                gp.compute_cycles(Cycles(1000)).await;
+                *steps.borrow_mut() += 1;
+            }
+        })
+    });
+    let r = run_with(
+        &minimal(),
+        &p,
+        Fidelity::Word,
+        one_ms,
+        Recorder::new(None, None),
+    );
+    assert!(matches!(r, Err(RunError::TimeLimit { limit, .. }) if limit == one_ms));
+    assert_eq!(*steps.borrow(), 40);
+}
+
+#[test]
+fn a_program_error_names_its_gp() {
+    let cfg = machine(2, 1, 1);
+    let p = program("boom", |gp| {
+        Box::pin(async move {
+            gp.compute_cycles(Cycles(10)).await;
+            if gp.index() == 1 {
+                gp.compute_cycles(Cycles(10)).await;
+                return Err(ProgramError("boom".into()));
+            }
+            Ok(())
+        })
+    });
+    let err = run(&cfg, &p).err().expect("program error");
+    assert_eq!(err.to_string(), "program error on GP 1: boom");
+    assert!(matches!(err, RunError::Program { gp: 1, ref message } if message == "boom"));
+}
+
+// ---------------------------------------------------------------------------------------------
+// 8-9. A mixed program: determinism, traces, fidelity
+// ---------------------------------------------------------------------------------------------
+
+/// Two GPs, two Renderers: messages both ways, Renderer commands (QEE, arithmetic, readbacks to a
+/// GP and to the frame buffer) and phases. Every message received is logged.
+struct Mixed {
+    log: Rc<RefCell<Vec<(u32, Message, Tick)>>>,
+}
+
+const MIXED_A: Field = Field {
+    offset: 0,
+    bits: 16,
+    signed: false,
+};
+const MIXED_B: Field = Field {
+    offset: 16,
+    bits: 16,
+    signed: false,
+};
+const MIXED_SUM: Field = Field {
+    offset: 32,
+    bits: 16,
+    signed: false,
+};
+const MIXED_RGB: Field = Field {
+    offset: 48,
+    bits: 24,
+    signed: false,
+};
+const MIXED_RECT: Rect = Rect {
+    x: 2,
+    y: 3,
+    width: 8,
+    height: 4,
+};
+
+impl Program for Mixed {
+    fn name(&self) -> &str {
+        "mixed"
+    }
+
+    fn gp_main(&self, gp: Gp) -> GpFuture {
+        let log = self.log.clone();
+        Box::pin(async move {
+            let me = gp.index();
+            let mut record = |m: Message, now: Tick| log.borrow_mut().push((me, m, now));
+            if me == 0 {
+                gp.phase("setup");
+                gp.compute(Op::VertexTransform, 10).await;
+                gp.send(Unit::Gp(1), data(1, 64)).await;
+                gp.phase("render");
+                // QEE x + 2y (A = 1.0, B = 2.0 in 18 fractional bits), plus a constant.
+                let expr = QeeExpr::linear(1 << 18, 2 << 18, 0);
+                gp.send_commands(
+                    0,
+                    vec![
+                        Command::SetOrigin { x: 0, y: 0 },
+                        Command::enable_all(),
+                        Command::WriteConst {
+                            dst: MIXED_A,
+                            value: 0x1234,
+                        },
+                        Command::QeeStore {
+                            expr,
+                            window: Window {
+                                shift: 18,
+                                bits: 16,
+                            },
+                            dst: MIXED_B,
+                        },
+                        Command::Add {
+                            dst: MIXED_SUM,
+                            a: MIXED_A,
+                            b: MIXED_B,
+                        },
+                        Command::Readback {
+                            field: MIXED_SUM,
+                            rect: MIXED_RECT,
+                            dest: Unit::Gp(0).encode(),
+                            tag: 0,
+                        },
+                    ],
+                )
+                .await;
+                let m = gp.recv().await;
+                record(m, gp.now());
+                gp.phase("reply");
+                let m = gp.recv().await;
+                record(m, gp.now());
+            } else {
+                gp.phase("work");
+                let m = gp.recv().await;
+                record(m, gp.now());
+                gp.compute_cycles(Cycles(500)).await;
+                gp.send_commands(
+                    1,
+                    vec![
+                        Command::enable_all(),
+                        Command::Logic {
+                            dst: Bit::Flag(0),
+                            a: Bit::Enable,
+                            b: Bit::Enable,
+                            op: pxpl5_renderer::LogicOp::A,
+                        },
+                        Command::WriteConst {
+                            dst: MIXED_RGB,
+                            value: 0x00FF_8040,
+                        },
+                        Command::Readback {
+                            field: MIXED_RGB,
+                            rect: Rect {
+                                x: 0,
+                                y: 0,
+                                width: 16,
+                                height: 16,
+                            },
+                            dest: Unit::FrameBuffer.encode(),
+                            tag: 100 | (200 << 16),
+                        },
+                    ],
+                )
+                .await;
+                gp.send(Unit::Gp(0), data(2, 300)).await;
+                gp.phase("tail");
+                gp.compute(Op::PolygonSetup, 3).await;
+            }
+            Ok(())
+        })
+    }
+}
+
+struct MixedRun {
+    result: RunResult,
+    log: Vec<(u32, Message, Tick)>,
+}
+
+fn mixed_cfg() -> MachineConfig {
+    machine(2, 2, 2)
+}
+
+fn run_mixed(fidelity: Fidelity, chrome: Option<&str>, vcd: Option<&str>) -> MixedRun {
+    let p = Mixed { log: Rc::default() };
+    let window = |w: Option<&str>| w.map(|w| TraceWindow::parse(w).unwrap());
+    let result = run_with(
+        &mixed_cfg(),
+        &p,
+        fidelity,
+        RunOptions::default().max_time,
+        Recorder::new(window(chrome), window(vcd)),
+    )
+    .unwrap();
+    let log = p.log.borrow().clone();
+    MixedRun { result, log }
+}
+
+/// The mixed program's results that do not depend on timing details: the readback to GP 0 holds
+/// 0x1234 + x + 2y, the frame buffer got 256 pixels of (0x40, 0x80, 0xFF).
+fn check_mixed_values(m: &MixedRun) {
+    assert_eq!(m.log.len(), 3);
+    let (gp, ref msg, _) = m.log[0];
+    assert_eq!((gp, msg.from), (1, Unit::Gp(0)));
+    assert_eq!(msg.payload, data(1, 64));
+    let (gp, ref msg, _) = m.log[1];
+    assert_eq!((gp, msg.from), (0, Unit::Renderer(0)));
+    let Payload::Pixels {
+        rect, bits, words, ..
+    } = &msg.payload
+    else {
+        panic!("expected pixels");
+    };
+    assert_eq!((*rect, *bits), (MIXED_RECT, 16));
+    let r = MIXED_RECT;
+    let expected: Vec<u64> = (r.y..r.y + r.height)
+        .flat_map(|y| (r.x..r.x + r.width).map(move |x| u64::from(0x1234 + x + 2 * y)))
+        .collect();
+    let n = expected.len();
+    assert_eq!(readback::unpack(words, 16, 32, n), expected);
+    let (gp, ref msg, _) = m.log[2];
+    assert_eq!((gp, msg.from), (0, Unit::Gp(1)));
+    assert_eq!(msg.payload, data(2, 300));
+
+    let f = &m.result.frame;
+    assert_eq!(f.writes, 256);
+    // Screen (100, 200) is array pixel (0, 0); frame rows count from the top.
+    let i = ((f.height - 1 - 200) * f.width + 100) as usize * 3;
+    assert_eq!(&f.rgb[i..i + 3], &[0x40, 0x80, 0xFF]);
+    assert_eq!(f.rgb.iter().filter(|&&b| b != 0).count(), 256 * 3);
+}
+
+/// Minimal structural VCD check: header, declared ids, increasing timestamps, known value ids.
+fn check_vcd(text: &str, end: Tick) {
+    assert!(text.contains("$timescale 1 ps $end"), "{text}");
+    let (head, body) = text
+        .split_once("$enddefinitions $end")
+        .expect("definitions");
+    let mut ids = BTreeSet::new();
+    let mut names = Vec::new();
+    for line in head.lines().filter(|l| l.trim_start().starts_with("$var")) {
+        let t: Vec<&str> = line.split_whitespace().collect();
+        // $var wire WIDTH ID NAME [range] $end
+        assert_eq!(t[1], "wire", "{line}");
+        ids.insert(t[3].to_string());
+        names.push(t[4].to_string());
+    }
+    for want in ["gp0_busy", "gp1_busy", "renderer0_busy", "renderer1_busy"] {
+        assert!(names.iter().any(|n| n == want), "no {want} in {names:?}");
+    }
+    assert!(names.iter().any(|n| n == "ch1_token_node"));
+    let mut last: Option<u64> = None;
+    let mut changes = 0;
+    for line in body.lines().map(str::trim).filter(|l| !l.is_empty()) {
+        if let Some(t) = line.strip_prefix('#') {
+            let t: u64 = t.parse().expect("timestamp");
+            assert!(last.is_none_or(|l| t > l), "timestamps increase: {line}");
+            last = Some(t);
+        } else if line.starts_with('$') {
+            assert!(["$dumpvars", "$end"].contains(&line), "{line}");
+        } else if let Some(rest) = line.strip_prefix('b') {
+            let (bits, id) = rest.split_once(' ').expect("vector change");
+            assert!(bits.bytes().all(|b| b == b'0' || b == b'1'), "{line}");
+            assert!(ids.contains(id), "{line}");
+            changes += 1;
+        } else {
+            let (v, id) = line.split_at(1);
+            assert!(v == "0" || v == "1", "{line}");
+            assert!(ids.contains(id), "{line}");
+            changes += 1;
+        }
+    }
+    assert!(changes > ids.len(), "some changes after the initial values");
+    assert_eq!(last, Some(end.0), "the dump ends at the run's end");
+}
+
+fn trace_events(bytes: &[u8]) -> Vec<Value> {
+    let v: Value = serde_json::from_slice(bytes).expect("Chrome trace is JSON");
+    v["traceEvents"]
+        .as_array()
+        .expect("traceEvents array")
+        .clone()
+}
+
+#[test]
+fn mixed_program_is_deterministic_with_traces_and_traces_are_well_formed() {
+    let a = run_mixed(Fidelity::Word, Some("0.."), Some("0.."));
+    let b = run_mixed(Fidelity::Word, Some("0.."), Some("0.."));
+    check_mixed_values(&a);
+    assert_eq!(
+        a.result.stats.to_json().to_string(),
+        b.result.stats.to_json().to_string()
+    );
+    assert_eq!(a.log, b.log);
+    let (ca, cb) = (chrome_bytes(&a.result), chrome_bytes(&b.result));
+    assert_eq!(ca, cb);
+    let (va, vb) = (vcd_bytes(&a.result), vcd_bytes(&b.result));
+    assert_eq!(va, vb);
+    // Recording changes nothing simulated.
+    let quiet = run_mixed(Fidelity::Word, None, None);
+    assert_eq!(
+        a.result.stats.to_json().to_string(),
+        quiet.result.stats.to_json().to_string()
+    );
+    let end = a.result.stats.end;
+    assert!(end > Tick(10_000_000), "the run outlasts the 10 us window");
+
+    // Chrome: slices for every GP phase and every Renderer command kind.
+    let events = trace_events(&ca);
+    let slices: BTreeSet<&str> = events
+        .iter()
+        .filter(|e| e["ph"] == "X")
+        .map(|e| e["name"].as_str().unwrap())
+        .collect();
+    for name in [
+        "setup",
+        "render",
+        "reply",
+        "work",
+        "tail",
+        "busy",
+        "set_origin",
+        "qee_store",
+        "add",
+        "logic",
+        "write_const",
+        "readback",
+        "GP 0 -> GP 1",
+        "Renderer 1 -> frame buffer",
+    ] {
+        assert!(slices.contains(name), "no slice {name:?} in {slices:?}");
+    }
+    // Phase spans in the stats agree with the trace's phase slices.
+    let phases: Vec<&str> = a
+        .result
+        .stats
+        .phases
+        .iter()
+        .map(|p| p.name.as_str())
+        .collect();
+    assert_eq!(phases, ["setup", "render", "reply", "work", "tail"]);
+
+    // A window keeps only what starts in it: a smaller trace whose events lie before 10 us.
+    let w = run_mixed(Fidelity::Word, Some("0..10us"), Some("0..10us"));
+    assert_eq!(
+        w.result.stats.to_json().to_string(),
+        a.result.stats.to_json().to_string()
+    );
+    let cw = chrome_bytes(&w.result);
+    assert!(cw.len() < ca.len());
+    let wevents = trace_events(&cw);
+    assert!(wevents.len() < events.len());
+    let mut timed = 0;
+    for e in &wevents {
+        if let Some(ts) = e.get("ts") {
+            let ts = ts.as_f64().unwrap();
+            assert!(ts < 10.0, "event at {ts} us outside the window: {e}");
+            if let Some(d) = e.get("dur") {
+                assert!(ts + d.as_f64().unwrap() <= 10.0 + 1e-9, "{e}");
+            }
+            timed += 1;
+        }
+    }
+    assert!(timed > 0);
+
+    // VCD: well formed, whole run and windowed.
+    check_vcd(std::str::from_utf8(&va).unwrap(), end);
+    let vw = vcd_bytes(&w.result);
+    let vw = std::str::from_utf8(&vw).unwrap();
+    assert!(vw.contains("$enddefinitions"));
+    assert!(vw.len() < va.len());
+    for line in vw.lines() {
+        if let Some(t) = line.strip_prefix('#') {
+            assert!(t.parse::<u64>().unwrap() <= 10_000_000, "{line}");
+        }
+    }
+}
+
+#[test]
+fn mixed_program_gives_the_same_stats_at_bit_and_word_fidelity() {
+    let bit = run_mixed(Fidelity::Bit, None, None);
+    let word = run_mixed(Fidelity::Word, None, None);
+    check_mixed_values(&bit);
+    check_mixed_values(&word);
+    let (mut jb, mut jw) = (bit.result.stats.to_json(), word.result.stats.to_json());
+    assert_eq!(jb["fidelity"], "bit");
+    assert_eq!(jw["fidelity"], "word");
+    jb.as_object_mut().unwrap().remove("fidelity");
+    jw.as_object_mut().unwrap().remove("fidelity");
+    assert_eq!(jb.to_string(), jw.to_string());
+    assert_eq!(bit.log, word.log);
+    assert_eq!(bit.result.frame, word.result.frame);
+}
+
+// ---------------------------------------------------------------------------------------------
+// 10. Message ordering
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn messages_between_two_gps_arrive_in_send_order_on_four_channels() {
+    let sizes: [u32; 20] = [
+        1, 1500, 2, 1024, 1025, 7, 300, 1499, 3, 800, 1, 64, 1200, 5, 1023, 999, 2, 1500, 17, 512,
+    ];
+    let cfg = machine(2, 1, 4);
+    let got: Rc<RefCell<Vec<Message>>> = Rc::default();
+    let g2 = got.clone();
+    let p = program("order", move |gp| {
+        let got = g2.clone();
+        Box::pin(async move {
+            if gp.index() == 0 {
+                for (i, &w) in sizes.iter().enumerate() {
+                    gp.send(Unit::Gp(1), data(i as u64, w)).await;
+                }
+            } else {
+                for _ in 0..sizes.len() {
+                    let m = gp.recv().await;
+                    got.borrow_mut().push(m);
+                }
+            }
+            Ok(())
+        })
+    });
+    let r = run(&cfg, &p).unwrap();
+    let got = got.borrow();
+    assert_eq!(got.len(), 20);
+    for (i, m) in got.iter().enumerate() {
+        assert_eq!(m.from, Unit::Gp(0));
+        assert_eq!(m.payload, data(i as u64, sizes[i]), "message {i}");
+    }
+    let j = r.stats.to_json();
+    let total: u64 = sizes.iter().map(|&w| u64::from(w)).sum();
+    assert_eq!(j["ring"]["payload_words"], total);
+    assert_eq!(j["ring"]["messages"], 20);
+    // Messages over 1,024 words travel as two packets: 6 of them.
+    assert_eq!(j["ring"]["header_words"], 26);
+    assert_eq!(r.stats.gps[1].messages_received, 20);
+    // On four channels a short message overtakes a long one on the ring; the machine holds it
+    // back so that the program still sees send order (Message::at keeps the ring's arrival).
+    let overtaken = got.windows(2).filter(|w| w[1].at < w[0].at).count();
+    assert!(overtaken > 0, "the ring reordered some messages");
+}
