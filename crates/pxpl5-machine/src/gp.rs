@@ -70,7 +70,8 @@ pub enum Payload {
 pub struct Message {
     pub from: Unit,
     pub payload: Payload,
-    /// When it arrived.
+    /// When the ring delivered it. A message held back to keep send order keeps its own arrival
+    /// time, so successive receives can see `at` go backwards.
     pub at: Tick,
 }
 

@@ -66,6 +66,8 @@ pub enum RunError {
     TimeLimit { limit: Tick, running: String },
     #[error("{unit} sent a message the ring cannot carry: {error}")]
     Ring { unit: Unit, error: RingError },
+    #[error("{from} sent a message to {to}, which this machine does not have")]
+    NoSuchUnit { from: Unit, to: Unit },
     #[error("bad machine: {0}")]
     Config(String),
 }
@@ -303,25 +305,22 @@ impl Machine {
                     waiting: self.waiting_report(),
                 });
             };
-            assert!(
-                next > self.now || self.now == Tick::ZERO,
-                "machine made no progress at {}: next event at {next} (queue {:?}, ring {:?})",
-                self.now,
-                self.events.peek_tick(),
-                self.ring.next_event_tick()
-            );
             if next > self.options.max_time {
                 return Err(RunError::TimeLimit {
                     limit: self.options.max_time,
                     running: self.waiting_report().replace('\n', "; "),
                 });
             }
+            // Events may be due at the current instant (a zero-cycle cost): they run now.
+            let mut progress = next > self.now;
             self.now = next;
             self.ring.advance(next);
             for d in self.ring.take_deliveries() {
+                progress = true;
                 self.deliver(d)?;
             }
             while self.events.peek_tick() == Some(next) {
+                progress = true;
                 let e = self.events.pop().expect("peeked");
                 match e.payload {
                     Event::RendererDone(r) => self.renderer_done(r)?,
@@ -329,6 +328,11 @@ impl Machine {
                 }
             }
             self.recorder.ring_sample(self.now, &self.ring);
+            assert!(
+                progress,
+                "machine made no progress at {}: ring reports an event due now but delivers nothing",
+                self.now
+            );
         }
         Ok(self.finish())
     }
@@ -456,8 +460,10 @@ impl Machine {
 
     /// Put a message on the ring; false if the sender's output queue is full.
     fn try_send(&mut self, from: Unit, to: Unit, payload: Payload) -> Result<bool, RunError> {
-        let src = self.position(from)?;
-        let dst = self.position(to)?;
+        let (Some(src), Some(dst)) = (self.positions.get(&from), self.positions.get(&to)) else {
+            return Err(RunError::NoSuchUnit { from, to });
+        };
+        let (src, dst) = (*src, *dst);
         let words = self.payload_words(&payload);
         let seq = *self.send_seq.get(&(from, to)).unwrap_or(&0);
         match self.ring.send(self.now, src, dst, words, seq) {
@@ -472,19 +478,6 @@ impl Machine {
             Err(RingError::OutputFull { .. }) => Ok(false),
             Err(error) => Err(RunError::Ring { unit: from, error }),
         }
-    }
-
-    fn position(&self, u: Unit) -> Result<NodeId, RunError> {
-        self.positions
-            .get(&u)
-            .copied()
-            .ok_or_else(|| RunError::Program {
-                gp: match u {
-                    Unit::Gp(g) => g,
-                    _ => 0,
-                },
-                message: format!("{u} does not exist on this machine"),
-            })
     }
 
     /// Ring words of a payload (headers are the ring's business).

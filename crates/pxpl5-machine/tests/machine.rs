@@ -415,15 +415,25 @@ fn renderer_busy_is_the_sum_of_cycle_costs_and_readback_returns_the_values_writt
     assert_eq!(words, vec![0x4433_2211; 8]);
     assert_eq!(readback::unpack(&words, 32, 32, 8), vec![0x4433_2211; 8]);
 
-    // Golden timing (minimal: nodes GP 0, Renderer 0, frame buffer, host; one channel whose
-    // token starts at node 0, lap 4 clocks of 50 ns; i860 and Renderer 25 ns):
-    // - GP 0 encodes 6 commands (24 cycles) and pays message_send (50): ring edge 74 * 25 / 50 =
-    //   37 ... precisely 1.85 us? No: 24 + 50 = 74 cycles = 1.85 us = edge 37. The token visits
-    //   node 0 at 36, 40: w = 3, 13 words (6 x 2), 1 hop: delivered at 40 + 13 + 1 = 54 = 2.7 us.
-    // The remaining figures are golden values checked against the same rules in the reply.
+    // Golden timing (minimal: nodes GP 0, Renderer 0, frame buffer, host, so a lap is 4 clocks
+    // of 50 ns; one channel whose token starts at node 0; i860 and Renderer clocks 25 ns):
+    // - GP 0 encodes 6 commands (6 x 4 cycles) and pays message_send (50): 74 cycles = 1.85 us
+    //   = ring edge 37. The token visits node 0 at 36, 40: w = 3; 6 x 2 words + 1 header, 1 hop:
+    //   delivered at 40 + 13 + 1 = 54 (2.7 us = Renderer cycle 108). The writes run 108..284.
+    // - The token, released at 53, passes node 0 at 57, 61, 65. The readback (encode 4 + send
+    //   50 cycles, ready at 3.2 us = edge 64) starts at 65 (w = 1), 3 words, arrives at 69
+    //   (3.45 us) but waits for the writes: it runs 284..336 (8.4 us = edge 168).
+    // - Renderer 0 (node 1) sends the 8 pixel words back: the token, released at 68, passes
+    //   node 1 at 69 + 4m, so 169 (w = 1); 9 words, 3 hops: delivered at 181 = 9.05 us. GP 0
+    //   has waited since 3.2 us; receiving costs 50 cycles: it is done at 10.3 us.
+    assert_eq!(m.at, Tick(9_050_000));
     assert_eq!(received, m.at + Tick(50 * 25_000));
-    assert_eq!(r.stats.gps[0].busy, Cycles(24 + 50 + 4 + 50 + 50));
+    assert_eq!(received, Tick(10_300_000));
     assert_eq!(r.stats.end, received);
+    assert_eq!(j["ring"]["token_wait_clocks"], 3 + 1 + 1);
+    assert_eq!(r.stats.gps[0].busy, Cycles(24 + 50 + 4 + 50 + 50));
+    // 10.3 us = 412 Renderer cycles, 228 of them busy.
+    assert_eq!(rs.idle, Cycles(412 - 228));
     assert_eq!(r.stats.frame_writes, 0);
 }
 
@@ -658,7 +668,7 @@ impl Program for Mixed {
         let log = self.log.clone();
         Box::pin(async move {
             let me = gp.index();
-            let mut record = |m: Message, now: Tick| log.borrow_mut().push((me, m, now));
+            let record = |m: Message, now: Tick| log.borrow_mut().push((me, m, now));
             if me == 0 {
                 gp.phase("setup");
                 gp.compute(Op::VertexTransform, 10).await;
@@ -854,6 +864,38 @@ fn trace_events(bytes: &[u8]) -> Vec<Value> {
         .clone()
 }
 
+/// On every (pid, tid) track, slices are disjoint or nested (what Perfetto needs to draw them).
+/// Times are compared in whole picoseconds (exact: a few hundred microseconds of six-decimal
+/// timestamps are far inside an f64's 53 bits).
+fn check_slices_nest(events: &[Value]) {
+    let ps = |v: &Value| -> u64 { (v.as_f64().unwrap() * 1e6).round() as u64 };
+    let mut tracks: std::collections::BTreeMap<(u64, u64), Vec<(u64, u64)>> = Default::default();
+    for e in events.iter().filter(|e| e["ph"] == "X") {
+        let key = (e["pid"].as_u64().unwrap(), e["tid"].as_u64().unwrap());
+        let start = ps(&e["ts"]);
+        tracks
+            .entry(key)
+            .or_default()
+            .push((start, start + ps(&e["dur"])));
+    }
+    for (track, mut slices) in tracks {
+        slices.sort_by_key(|&(s, e)| (s, std::cmp::Reverse(e)));
+        let mut open: Vec<u64> = Vec::new();
+        for (s, e) in slices {
+            while open.last().is_some_and(|&end| end <= s) {
+                open.pop();
+            }
+            if let Some(&end) = open.last() {
+                assert!(
+                    e <= end,
+                    "track {track:?}: [{s}, {e}) overlaps a slice ending {end}"
+                );
+            }
+            open.push(e);
+        }
+    }
+}
+
 #[test]
 fn mixed_program_is_deterministic_with_traces_and_traces_are_well_formed() {
     let a = run_mixed(Fidelity::Word, Some("0.."), Some("0.."));
@@ -902,6 +944,7 @@ fn mixed_program_is_deterministic_with_traces_and_traces_are_well_formed() {
     ] {
         assert!(slices.contains(name), "no slice {name:?} in {slices:?}");
     }
+    check_slices_nest(&events);
     // Phase spans in the stats agree with the trace's phase slices.
     let phases: Vec<&str> = a
         .result
@@ -934,6 +977,7 @@ fn mixed_program_is_deterministic_with_traces_and_traces_are_well_formed() {
         }
     }
     assert!(timed > 0);
+    check_slices_nest(&wevents);
 
     // VCD: well formed, whole run and windowed.
     check_vcd(std::str::from_utf8(&va).unwrap(), end);
@@ -1003,11 +1047,61 @@ fn messages_between_two_gps_arrive_in_send_order_on_four_channels() {
     let total: u64 = sizes.iter().map(|&w| u64::from(w)).sum();
     assert_eq!(j["ring"]["payload_words"], total);
     assert_eq!(j["ring"]["messages"], 20);
-    // Messages over 1,024 words travel as two packets: 6 of them.
-    assert_eq!(j["ring"]["header_words"], 26);
+    // Messages over 1,024 words (1500, 1025, 1499, 1200, 1500) travel as two packets.
+    assert_eq!(j["ring"]["header_words"], 20 + 5);
     assert_eq!(r.stats.gps[1].messages_received, 20);
     // On four channels a short message overtakes a long one on the ring; the machine holds it
     // back so that the program still sees send order (Message::at keeps the ring's arrival).
     let overtaken = got.windows(2).filter(|w| w[1].at < w[0].at).count();
     assert!(overtaken > 0, "the ring reordered some messages");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Regressions
+// ---------------------------------------------------------------------------------------------
+
+/// Zero-cycle costs are valid config values: an event due at the current instant runs then
+/// (this used to stop the run with "machine made no progress").
+#[test]
+fn zero_cycle_costs_run() {
+    let mut cfg = machine(2, 1, 1);
+    cfg.gp.costs.message_send = 0;
+    cfg.gp.costs.message_receive = 0;
+    cfg.renderer.cycles.igc_overhead = 0;
+    let p = program("zero", |gp| {
+        Box::pin(async move {
+            if gp.index() == 0 {
+                gp.compute_cycles(Cycles(10)).await;
+                gp.send(Unit::Gp(1), data(1, 4)).await;
+                gp.send_commands(0, vec![pxpl5_renderer::Command::Fence])
+                    .await;
+            } else {
+                gp.compute_cycles(Cycles(1000)).await;
+                let m = gp.recv().await;
+                assert_eq!(m.from, Unit::Gp(0));
+            }
+            Ok(())
+        })
+    });
+    let r = run(&cfg, &p).expect("runs");
+    assert_eq!(r.stats.end, Tick(1000 * 25_000));
+}
+
+/// A message to a unit the machine does not have names the sender and the destination.
+#[test]
+fn a_message_to_a_missing_unit_names_both_ends() {
+    let cfg = machine(2, 1, 1);
+    let p = program("nowhere", |gp| {
+        Box::pin(async move {
+            if gp.index() == 1 {
+                gp.send(Unit::Gp(7), data(0, 1)).await;
+            }
+            Ok(())
+        })
+    });
+    let err = run(&cfg, &p).err().expect("an error");
+    assert_eq!(
+        err.to_string(),
+        "GP 1 sent a message to GP 7, which this machine does not have"
+    );
 }

@@ -1,6 +1,7 @@
 //! The packing of read-back pixels into ring words.
 //!
-//! A readback sends a field of a rectangle of pixels, row by row (top row first, left to right),
+//! A readback sends a field of a rectangle of pixels, row by row (array row `rect.y` first, then
+//! upward; each row left to right),
 //! as ring words of `word_bits` bits ([seed]: 32):
 //!
 //! - a field of `bits <= word_bits` packs `k = floor(word_bits / bits)` pixels per word, pixel i of

@@ -1,0 +1,640 @@
+//! Form-factor views of a shooter: the hemisphere (Goldfeather, TR89-002) and the five faces of
+//! the hemicube (Cohen & Greenberg), as the GP code computes them: each receiving polygon becomes
+//! a short list of Renderer commands (edge tests combined into enable, a depth compare-and-store,
+//! an ID store), and each pixel of a view has a delta form factor.
+//!
+//! Coordinates: the shooter at the origin, its normal +z, scaled by 1/`scale` so that distances
+//! are at most about 1 (radiosity-formulas.md section 6.5: translate and scale in f64 before
+//! converting to fixed point). Pixel (s, t) of a view has QEE address (s, t) (the board's origin
+//! carries a tile's or a face's offset), and its sample point is the pixel's centre.
+//!
+//! Sign tests are exact under any positive scaling of an expression, so every edge expression is
+//! scaled until its largest coefficient fills the QEE's integer bits before it is quantised: a
+//! hemisphere quadratic's coefficients are of order 1/N^2 in pixel units and would otherwise keep
+//! only a few significant bits (section 6.2).
+
+use pxpl5_config::FixedFormat;
+use pxpl5_renderer::{Bit, Cmp, Command, Field, LogicOp, QeeExpr, Window};
+
+pub type V3 = [f64; 3];
+
+pub fn sub(a: V3, b: V3) -> V3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+pub fn dot(a: V3, b: V3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+pub fn cross(a: V3, b: V3) -> V3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+pub fn scale3(a: V3, s: f64) -> V3 {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+pub fn norm(a: V3) -> f64 {
+    dot(a, a).sqrt()
+}
+pub fn normalise(a: V3) -> V3 {
+    scale3(a, 1.0 / norm(a))
+}
+
+/// The shooter's frame: a point, and orthonormal tangents t1, t2 with the normal n.
+#[derive(Clone, Copy, Debug)]
+pub struct Frame {
+    pub origin: V3,
+    pub t1: V3,
+    pub t2: V3,
+    pub n: V3,
+    /// Scene units per frame unit.
+    pub scale: f64,
+}
+
+impl Frame {
+    /// A frame at `p` with normal `n`; the tangents are fixed by `n` alone (no random rotation,
+    /// so runs are reproducible).
+    pub fn new(p: V3, n: V3, scale: f64) -> Frame {
+        let n = normalise(n);
+        let helper = if n[0].abs() < 0.6 {
+            [1.0, 0.0, 0.0]
+        } else {
+            [0.0, 1.0, 0.0]
+        };
+        let t1 = normalise(cross(helper, n));
+        let t2 = cross(n, t1);
+        Frame {
+            origin: p,
+            t1,
+            t2,
+            n,
+            scale,
+        }
+    }
+
+    /// A scene point in the frame.
+    pub fn local(&self, v: V3) -> V3 {
+        let d = sub(v, self.origin);
+        [
+            dot(d, self.t1) / self.scale,
+            dot(d, self.t2) / self.scale,
+            dot(d, self.n) / self.scale,
+        ]
+    }
+
+    /// A scene direction in the frame (not scaled).
+    pub fn direction(&self, d: V3) -> V3 {
+        [dot(d, self.t1), dot(d, self.t2), dot(d, self.n)]
+    }
+}
+
+/// Which rule turns a hemisphere edge's two sign flags into enable.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EdgeRule {
+    /// radiosity-formulas.md section 3: the edge plane's normal points into the polygon; by the
+    /// sign of C: C > 0: L >= 0 or Q <= 0; C < 0: L >= 0 and Q >= 0; C = 0: L >= 0.
+    SignOfC,
+    /// TR89-002 as written: the normal chosen with C < 0, POS = L >= 0, INSIDE = Q <= 0, and a
+    /// third vertex (u0, v0) picks CASE 1 (L0 > 0 and Q0 > 0: disable where INSIDE or not POS)
+    /// or CASE 2 (disable where not INSIDE and POS).
+    Seed,
+}
+
+/// How depth is compared on the hemisphere.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HemisphereDepth {
+    /// The seed's Taylor approximation w ~ 1 - (u^2 + v^2) / 2: one quadratic.
+    Taylor,
+}
+
+/// The Renderer fields and flags a form-factor view uses.
+#[derive(Clone, Copy, Debug)]
+pub struct ViewFields {
+    pub id: Field,
+    pub depth: Field,
+    /// Flag 0: pixels of the view (inside the disk, or the face's rows).
+    pub view: Bit,
+    pub pos: Bit,
+    pub inside: Bit,
+    pub t: Bit,
+}
+
+impl ViewFields {
+    pub fn allocate(memory_bits: u32) -> Result<ViewFields, pxpl5_renderer::LayoutError> {
+        let mut l = pxpl5_renderer::PixelLayout::new(memory_bits);
+        Ok(ViewFields {
+            id: l.alloc("id", 16, false)?,
+            depth: l.alloc("depth", DEPTH_BITS, true)?,
+            view: Bit::Flag(0),
+            pos: Bit::Flag(1),
+            inside: Bit::Flag(2),
+            t: Bit::Flag(3),
+        })
+    }
+}
+
+/// Depth field width; depth values are 1/distance in frame units times 2^DEPTH_FRAC.
+pub const DEPTH_BITS: u32 = 28;
+/// Fractional bits of stored depth: 1/distance up to 2^(DEPTH_BITS - 1 - DEPTH_FRAC) = 512.
+pub const DEPTH_FRAC: u32 = 18;
+
+/// Scale real coefficients so the largest magnitude is just under 2^int_bits, then quantise: for
+/// sign tests only (a positive factor keeps every sign).
+pub fn quantise_for_sign(c: [f64; 6], f: FixedFormat) -> Option<QeeExpr> {
+    let max = c.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if !max.is_finite() || max == 0.0 {
+        return None;
+    }
+    let target = (f.int_bits as f64).exp2() * 0.99;
+    // A power of two, so the scaling itself is exact.
+    let k = (target / max).log2().floor().exp2();
+    QeeExpr::quantise(c.map(|x| x * k), f).ok()
+}
+
+/// Coefficients `[A, B, C, D, E, F]` of `a u + b v + c + d u^2 + e uv + f v^2` after substituting
+/// u = k s + m, v = k t + m.
+pub fn to_pixels(q: [f64; 6], k: f64, m: f64) -> [f64; 6] {
+    let [a, b, c, d, e, f] = q;
+    [
+        a * k + 2.0 * d * k * m + e * k * m,
+        b * k + 2.0 * f * k * m + e * k * m,
+        c + (a + b) * m + (d + e + f) * m * m,
+        d * k * k,
+        e * k * k,
+        f * k * k,
+    ]
+}
+
+/// Why a receiver is not drawn in a view (each is charged to the GP and counted).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cull {
+    BackFacing,
+    BelowHorizon,
+    /// Its plane passes through the shooter (section 6.1): F = 0, depth undefined.
+    Coplanar,
+    /// Outside a hemicube face.
+    OutsideFace,
+    /// A coefficient does not fit the QEE format.
+    Unrepresentable,
+}
+
+/// The Renderer commands that draw one receiver (vertices already in the shooter's frame) on a
+/// hemisphere of `n` pixels across, or why it is culled.
+pub fn hemisphere_polygon(
+    verts: &[V3],
+    id: u16,
+    n: u32,
+    rule: EdgeRule,
+    f: &ViewFields,
+    format: FixedFormat,
+) -> Result<Vec<Command>, Cull> {
+    let m = verts.len();
+    let centroid = scale3(
+        verts.iter().fold([0.0; 3], |a, v| [a[0] + v[0], a[1] + v[1], a[2] + v[2]]),
+        1.0 / m as f64,
+    );
+    let normal = normalise(cross(sub(verts[1], verts[0]), sub(verts[2], verts[0])));
+    // The plane n'.x = d'; the shooter (origin) must be on the front side: d' < 0.
+    let d = dot(normal, verts[0]);
+    if verts.iter().all(|v| v[2] <= 0.0) {
+        return Err(Cull::BelowHorizon);
+    }
+    if d.abs() < 1e-9 {
+        return Err(Cull::Coplanar);
+    }
+    if d > 0.0 {
+        return Err(Cull::BackFacing);
+    }
+    let (k, mo) = (2.0 / f64::from(n), (1.0 - f64::from(n)) / f64::from(n));
+    let sign = |q: [f64; 6]| quantise_for_sign(to_pixels(q, k, mo), format).ok_or(Cull::Unrepresentable);
+    let window = |e: QeeExpr| e.sign_window((0, 0), n, n);
+    let mut out = vec![Command::Logic {
+        dst: Bit::Enable,
+        a: f.view,
+        b: f.view,
+        op: LogicOp::A,
+    }];
+    let mut push_sign = |out: &mut Vec<Command>, q: [f64; 6], dst: Bit| -> Result<(), Cull> {
+        let e = sign(q)?;
+        out.push(Command::QeeSign {
+            expr: e,
+            window: window(e),
+            dst,
+            combine: LogicOp::B,
+        });
+        Ok(())
+    };
+    for i in 0..m {
+        let (p1, p2) = (verts[i], verts[(i + 1) % m]);
+        let mut pl = normalise(cross(p1, p2));
+        if !pl.iter().all(|x| x.is_finite()) {
+            return Err(Cull::Coplanar);
+        }
+        let quad = |a: f64, b: f64, c: f64| [0.0, 0.0, -c * c, a * a + c * c, 2.0 * a * b, b * b + c * c];
+        match rule {
+            EdgeRule::SignOfC => {
+                if dot(pl, centroid) < 0.0 {
+                    pl = scale3(pl, -1.0);
+                }
+                let [a, b, c] = pl;
+                push_sign(&mut out, [a, b, 0.0, 0.0, 0.0, 0.0], f.pos)?;
+                if c == 0.0 {
+                    out.push(and_enable(f.pos));
+                    continue;
+                }
+                let q = quad(a, b, c);
+                let (q, op) = if c > 0.0 {
+                    (q.map(|x| -x), LogicOp::OR)
+                } else {
+                    (q, LogicOp::AND)
+                };
+                push_sign(&mut out, q, f.inside)?;
+                out.push(Command::Logic {
+                    dst: f.t,
+                    a: f.pos,
+                    b: f.inside,
+                    op,
+                });
+                out.push(and_enable(f.t));
+            }
+            EdgeRule::Seed => {
+                if pl[2] > 0.0 {
+                    pl = scale3(pl, -1.0);
+                }
+                let [a, b, c] = pl;
+                push_sign(&mut out, [a, b, 0.0, 0.0, 0.0, 0.0], f.pos)?;
+                if c == 0.0 {
+                    // The seed assumes C < 0; an edge plane through the pole has only its line.
+                    let third = verts[(i + 2) % m];
+                    if a * third[0] + b * third[1] < 0.0 {
+                        out.push(Command::Logic {
+                            dst: Bit::Enable,
+                            a: Bit::Enable,
+                            b: f.pos,
+                            op: LogicOp::AND_NOT,
+                        });
+                    } else {
+                        out.push(and_enable(f.pos));
+                    }
+                    continue;
+                }
+                let q = quad(a, b, c);
+                // INSIDE = Q <= 0.
+                push_sign(&mut out, q.map(|x| -x), f.inside)?;
+                let third = verts[(i + 2) % m];
+                let rho = norm(third);
+                let (u0, v0) = (third[0] / rho, third[1] / rho);
+                let l0 = a * u0 + b * v0;
+                let q0 = (a * u0 + b * v0).powi(2) - c * c * (1.0 - u0 * u0 - v0 * v0);
+                let t = if l0 > 0.0 && q0 > 0.0 {
+                    // CASE 1: enabled where POS and not INSIDE.
+                    Command::Logic {
+                        dst: f.t,
+                        a: f.pos,
+                        b: f.inside,
+                        op: LogicOp::AND_NOT,
+                    }
+                } else {
+                    // CASE 2: enabled where INSIDE or not POS.
+                    Command::Logic {
+                        dst: f.t,
+                        a: f.inside,
+                        b: f.pos,
+                        op: LogicOp::OR_NOT,
+                    }
+                };
+                out.push(t);
+                out.push(and_enable(f.t));
+            }
+        }
+    }
+    // Depth: 1/rho = (n'.dir) / d' with w ~ 1 - (u^2 + v^2) / 2 (the seed's Taylor option).
+    let (a, b, c) = (normal[0] / d, normal[1] / d, normal[2] / d);
+    let depth_scale = f64::from(DEPTH_FRAC as i32 - format.frac_bits as i32).exp2();
+    let gamma = to_pixels(
+        [a, b, c, -c / 2.0, 0.0, -c / 2.0].map(|x| x * depth_scale),
+        k,
+        mo,
+    );
+    let gamma = QeeExpr::quantise(gamma, format).map_err(|_| Cull::Unrepresentable)?;
+    push_depth_and_id(&mut out, gamma, id, f);
+    Ok(out)
+}
+
+fn and_enable(b: Bit) -> Command {
+    Command::Logic {
+        dst: Bit::Enable,
+        a: Bit::Enable,
+        b,
+        op: LogicOp::AND,
+    }
+}
+
+/// Depth compare (nearer = larger 1/distance), store, and ID store.
+fn push_depth_and_id(out: &mut Vec<Command>, depth: QeeExpr, id: u16, f: &ViewFields) {
+    let window = Window {
+        shift: 0,
+        bits: f.depth.bits,
+    };
+    out.push(Command::QeeCompare {
+        expr: depth,
+        window,
+        field: f.depth,
+        cmp: Cmp::Gt,
+        dst: Bit::Enable,
+        combine: LogicOp::AND,
+    });
+    out.push(Command::QeeStore {
+        expr: depth,
+        window,
+        dst: f.depth,
+    });
+    out.push(Command::WriteConst {
+        dst: f.id,
+        value: u64::from(id),
+    });
+}
+
+/// The commands that prepare a board for a view: enable the view's pixels (flag 0), clear depth
+/// and IDs. `disk` selects the hemisphere's disk of `n` pixels across; otherwise the face's
+/// `rows` rows (from address `row0`).
+pub fn view_setup(
+    hemisphere: bool,
+    n: u32,
+    origin: (u32, u32),
+    rows: u32,
+    f: &ViewFields,
+    format: FixedFormat,
+) -> Vec<Command> {
+    let mut out = vec![
+        Command::SetOrigin {
+            x: origin.0,
+            y: origin.1,
+        },
+        Command::enable_all(),
+        Command::WriteConst { dst: f.id, value: 0 },
+        Command::WriteConst {
+            dst: f.depth,
+            value: 0,
+        },
+    ];
+    let view_expr = if hemisphere {
+        // 1 - u^2 - v^2 >= 0 at the pixel centre.
+        let (k, m) = (2.0 / f64::from(n), (1.0 - f64::from(n)) / f64::from(n));
+        to_pixels([0.0, 0.0, 1.0, -1.0, 0.0, -1.0], k, m)
+    } else {
+        // Rows below row0 + rows: (row0 + rows - 0.5) - t >= 0.
+        [0.0, -1.0, f64::from(origin.1 + rows) - 0.5, 0.0, 0.0, 0.0]
+    };
+    let e = quantise_for_sign(view_expr, format).expect("the view expression is representable");
+    out.push(Command::QeeSign {
+        expr: e,
+        window: e.sign_window(origin, 128.max(n), 128.max(n)),
+        dst: f.view,
+        combine: LogicOp::B,
+    });
+    out
+}
+
+/// Delta form factors of a hemisphere of `n` pixels across, row-major, normalised to sum 1 over
+/// the pixels whose centre is inside the disk (the pixels the board draws).
+///
+/// `exact`: the Nusselt analogue: a pixel's delta form factor is its area inside the unit circle
+/// over pi (computed by 64 x 64 sub-samples for pixels the circle cuts, exactly dx dy / pi for the
+/// others). Otherwise the seed's rule: the surface integral of 1 / sqrt(1 - x^2 - y^2) over the
+/// pixel times cos(theta) at its centre, over pi.
+pub fn hemisphere_delta_ff(n: usize, exact: bool) -> Vec<f64> {
+    let h = 2.0 / n as f64;
+    let mut table = vec![0.0; n * n];
+    let mut sum = 0.0;
+    for t in 0..n {
+        for s in 0..n {
+            let (u, v) = ((s as f64 + 0.5) * h - 1.0, (t as f64 + 0.5) * h - 1.0);
+            if u * u + v * v > 1.0 {
+                continue;
+            }
+            let (x0, y0) = (s as f64 * h - 1.0, t as f64 * h - 1.0);
+            let corners_inside = [(0.0, 0.0), (h, 0.0), (0.0, h), (h, h)]
+                .iter()
+                .all(|(dx, dy)| (x0 + dx).powi(2) + (y0 + dy).powi(2) <= 1.0);
+            let value = if exact {
+                if corners_inside {
+                    h * h
+                } else {
+                    let k = 64;
+                    let mut inside = 0;
+                    for j in 0..k {
+                        for i in 0..k {
+                            let x = x0 + (i as f64 + 0.5) * h / k as f64;
+                            let y = y0 + (j as f64 + 0.5) * h / k as f64;
+                            if x * x + y * y <= 1.0 {
+                                inside += 1;
+                            }
+                        }
+                    }
+                    h * h * f64::from(inside) / f64::from(k * k)
+                }
+            } else {
+                let k = 8;
+                let mut area = 0.0;
+                for j in 0..k {
+                    for i in 0..k {
+                        let x = x0 + (i as f64 + 0.5) * h / k as f64;
+                        let y = y0 + (j as f64 + 0.5) * h / k as f64;
+                        let r2 = x * x + y * y;
+                        if r2 < 1.0 {
+                            area += (h / k as f64).powi(2) / (1.0 - r2).sqrt();
+                        }
+                    }
+                }
+                area * (1.0 - u * u - v * v).max(0.0).sqrt()
+            };
+            table[t * n + s] = value;
+            sum += value;
+        }
+    }
+    for x in &mut table {
+        *x /= sum;
+    }
+    table
+}
+
+/// One face of the hemicube: its viewing direction and screen axes in the shooter's frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Face {
+    Top,
+    /// Looking along +t1, -t1, +t2, -t2, with the normal up.
+    Side(u8),
+}
+
+impl Face {
+    pub const ALL: [Face; 5] = [Face::Top, Face::Side(0), Face::Side(1), Face::Side(2), Face::Side(3)];
+
+    /// (right, up, forward) axes in the shooter's frame.
+    pub fn axes(self) -> (V3, V3, V3) {
+        match self {
+            Face::Top => ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]),
+            Face::Side(0) => ([0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]),
+            Face::Side(1) => ([0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, 0.0, 0.0]),
+            Face::Side(2) => ([-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]),
+            Face::Side(_) => ([1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]),
+        }
+    }
+
+    /// Rows of the face (a side face is the upper half of a full face).
+    pub fn rows(self, n: u32) -> u32 {
+        match self {
+            Face::Top => n,
+            Face::Side(_) => n / 2,
+        }
+    }
+
+    /// First row address of the face within a full n x n face.
+    pub fn row0(self, n: u32) -> u32 {
+        match self {
+            Face::Top => 0,
+            Face::Side(_) => n / 2,
+        }
+    }
+}
+
+/// Clip a convex polygon (face coordinates X, Y, Z) to `plane . p >= 0` (Sutherland-Hodgman).
+fn clip(poly: &[V3], plane: [f64; 4]) -> Vec<V3> {
+    let val = |p: &V3| plane[0] * p[0] + plane[1] * p[1] + plane[2] * p[2] + plane[3];
+    let mut out = Vec::new();
+    for i in 0..poly.len() {
+        let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
+        let (va, vb) = (val(&a), val(&b));
+        if va >= 0.0 {
+            out.push(a);
+        }
+        if (va >= 0.0) != (vb >= 0.0) {
+            let t = va / (va - vb);
+            out.push([
+                a[0] + t * (b[0] - a[0]),
+                a[1] + t * (b[1] - a[1]),
+                a[2] + t * (b[2] - a[2]),
+            ]);
+        }
+    }
+    out
+}
+
+/// Near plane of the hemicube faces, in frame units (distances are at most about 1).
+pub const HEMICUBE_NEAR: f64 = 1e-4;
+
+/// The commands that draw one receiver (vertices in the shooter's frame) on hemicube face `face`
+/// of `n` pixels across, or why it is culled. `origin` is the board's QEE origin for the face.
+pub fn hemicube_polygon(
+    verts: &[V3],
+    id: u16,
+    face: Face,
+    n: u32,
+    f: &ViewFields,
+    format: FixedFormat,
+) -> Result<Vec<Command>, Cull> {
+    let normal = normalise(cross(sub(verts[1], verts[0]), sub(verts[2], verts[0])));
+    let d = dot(normal, verts[0]);
+    if verts.iter().all(|v| v[2] <= 0.0) {
+        return Err(Cull::BelowHorizon);
+    }
+    if d.abs() < 1e-9 {
+        return Err(Cull::Coplanar);
+    }
+    if d > 0.0 {
+        return Err(Cull::BackFacing);
+    }
+    let (r, u, fw) = face.axes();
+    let mut poly: Vec<V3> = verts.iter().map(|v| [dot(*v, r), dot(*v, u), dot(*v, fw)]).collect();
+    // The face's frustum: Z >= near, -Z <= X <= Z, and -Z <= Y <= Z (top) or 0 <= Y <= Z (side).
+    let y_low = match face {
+        Face::Top => [0.0, 1.0, 1.0, 0.0],
+        Face::Side(_) => [0.0, 1.0, 0.0, 0.0],
+    };
+    for plane in [
+        [0.0, 0.0, 1.0, -HEMICUBE_NEAR],
+        [1.0, 0.0, 1.0, 0.0],
+        [-1.0, 0.0, 1.0, 0.0],
+        [0.0, -1.0, 1.0, 0.0],
+        y_low,
+    ] {
+        poly = clip(&poly, plane);
+        if poly.len() < 3 {
+            return Err(Cull::OutsideFace);
+        }
+    }
+    // Pixel address s = (X/Z + 1) n/2 - 0.5, t likewise (rows of a side face start at n/2).
+    let half = f64::from(n) / 2.0;
+    let screen: Vec<(f64, f64)> = poly
+        .iter()
+        .map(|p| ((p[0] / p[2] + 1.0) * half - 0.5, (p[1] / p[2] + 1.0) * half - 0.5))
+        .collect();
+    let area: f64 = (0..screen.len())
+        .map(|i| {
+            let (a, b) = (screen[i], screen[(i + 1) % screen.len()]);
+            a.0 * b.1 - b.0 * a.1
+        })
+        .sum();
+    if area.abs() < 1e-12 {
+        return Err(Cull::OutsideFace);
+    }
+    let mut out = vec![Command::Logic {
+        dst: Bit::Enable,
+        a: f.view,
+        b: f.view,
+        op: LogicOp::A,
+    }];
+    let max = f64::from(n);
+    for i in 0..screen.len() {
+        let (p, q) = if area > 0.0 {
+            (screen[i], screen[(i + 1) % screen.len()])
+        } else {
+            (screen[(i + 1) % screen.len()], screen[i])
+        };
+        let (a, b) = (-(q.1 - p.1), q.0 - p.0);
+        let c = -(a * p.0 + b * p.1);
+        let vals = [(-1.0, -1.0), (max, -1.0), (-1.0, max), (max, max)].map(|(x, y)| a * x + b * y + c);
+        if vals.iter().all(|v| *v >= 0.0) {
+            continue;
+        }
+        let e = quantise_for_sign([a, b, c, 0.0, 0.0, 0.0], format).ok_or(Cull::Unrepresentable)?;
+        out.push(Command::QeeSign {
+            expr: e,
+            window: e.sign_window((0, 0), n, n),
+            dst: Bit::Enable,
+            combine: LogicOp::AND,
+        });
+    }
+    // 1/Z = (n'_x X/Z + n'_y Y/Z + n'_z) / d' in face axes; nearer = larger; X/Z = (s + 0.5)/half - 1.
+    let nf = [dot(normal, r), dot(normal, u), dot(normal, fw)];
+    let (a, b, c) = (nf[0] / d, nf[1] / d, nf[2] / d);
+    let (k, m) = (1.0 / half, 0.5 / half - 1.0);
+    let depth_scale = f64::from(DEPTH_FRAC as i32 - format.frac_bits as i32).exp2();
+    let lin = to_pixels([a, b, c, 0.0, 0.0, 0.0].map(|x| x * depth_scale), k, m);
+    let depth = QeeExpr::quantise(lin, format).map_err(|_| Cull::Unrepresentable)?;
+    push_depth_and_id(&mut out, depth, id, f);
+    Ok(out)
+}
+
+/// Delta form factors of hemicube face `face` with an `n` x `n` top face, row-major over the
+/// face's rows, *not* normalised (the caller normalises over all five faces).
+pub fn hemicube_delta_ff(face: Face, n: usize) -> Vec<f64> {
+    let h = 2.0 / n as f64;
+    let rows = face.rows(n as u32) as usize;
+    let row0 = face.row0(n as u32) as usize;
+    let mut out = Vec::with_capacity(rows * n);
+    for t in 0..rows {
+        for s in 0..n {
+            let x = (s as f64 + 0.5) * h - 1.0;
+            let y = ((t + row0) as f64 + 0.5) * h - 1.0;
+            let v = match face {
+                Face::Top => h * h / (std::f64::consts::PI * (x * x + y * y + 1.0).powi(2)),
+                // On a side face the screen's up axis is the normal: z = y here.
+                Face::Side(_) => y * h * h / (std::f64::consts::PI * (x * x + y * y + 1.0).powi(2)),
+            };
+            out.push(v);
+        }
+    }
+    out
+}
