@@ -11,6 +11,7 @@
 
 mod bench;
 mod config_cmd;
+mod radiosity;
 mod run;
 
 use std::path::PathBuf;
@@ -35,6 +36,13 @@ enum Command {
     /// Validate and print machine configs (RON files in machine-configs/).
     #[command(subcommand)]
     Config(ConfigCommand),
+    /// Progressive radiosity with hemisphere and/or hemicube form factors on the machine: the
+    /// measured time per method and phase beside the seed's estimate, radiosity.png, per-patch
+    /// radiosity CSV.
+    Radiosity(radiosity::RadiosityArgs),
+    /// The form factor from a point to a polygon: exact, or measured on the machine with its
+    /// cycles.
+    Formfactor(radiosity::FormFactorArgs),
     /// Run a program on a machine: writes DIR/frame.png, DIR/stats.json and DIR/config.ron,
     /// prints the stats table; --trace and --vcd record simulated time.
     Run(run::RunArgs),
@@ -87,6 +95,8 @@ fn main() -> ExitCode {
         Some(Command::Config(ConfigCommand::Show { file })) => config_cmd::show(file.as_deref()),
         Some(Command::Bench(BenchCommand::Renderer(args))) => bench::renderer(&args),
         Some(Command::Run(args)) => run::run(&args),
+        Some(Command::Radiosity(args)) => radiosity::radiosity(&args),
+        Some(Command::Formfactor(args)) => radiosity::formfactor(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

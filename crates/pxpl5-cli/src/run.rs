@@ -158,7 +158,7 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
 }
 
 /// Fail early, with the path, if `dir` cannot take a file.
-fn probe_writable(dir: &Path) -> Result<(), UserError> {
+pub fn probe_writable(dir: &Path) -> Result<(), UserError> {
     let probe = dir.join(format!(".pxpl5-probe-{}", std::process::id()));
     std::fs::write(&probe, b"")
         .and_then(|_| std::fs::remove_file(&probe))
@@ -166,7 +166,7 @@ fn probe_writable(dir: &Path) -> Result<(), UserError> {
 }
 
 /// Write `bytes` to a temporary file beside `path`, then rename it into place.
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), UserError> {
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), UserError> {
     let tmp = path.with_extension(format!("tmp-{}", std::process::id()));
     let result = std::fs::File::create(&tmp)
         .and_then(|mut f| f.write_all(bytes).and_then(|_| f.sync_all()))
@@ -178,7 +178,7 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), UserError> {
 }
 
 /// The frame as an 8-bit RGB PNG.
-fn png_bytes(frame: &Frame) -> Result<Vec<u8>, UserError> {
+pub fn png_bytes(frame: &Frame) -> Result<Vec<u8>, UserError> {
     let mut out = Vec::new();
     {
         let mut enc = png::Encoder::new(&mut out, frame.width, frame.height);

@@ -20,6 +20,7 @@
 mod error;
 pub mod provenance;
 // The schema's docs tag fields as `[paper]`, `[seed]`, ...: provenance tags, not links.
+pub mod radiosity_scene;
 pub mod scene;
 #[allow(rustdoc::broken_intra_doc_links)]
 mod schema;

@@ -2,4 +2,7 @@
 
 pub mod exact;
 pub mod mesh;
+pub mod program;
 pub mod scenes;
+pub mod shot;
+pub mod views;

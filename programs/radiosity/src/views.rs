@@ -191,7 +191,9 @@ pub fn hemisphere_polygon(
 ) -> Result<Vec<Command>, Cull> {
     let m = verts.len();
     let centroid = scale3(
-        verts.iter().fold([0.0; 3], |a, v| [a[0] + v[0], a[1] + v[1], a[2] + v[2]]),
+        verts
+            .iter()
+            .fold([0.0; 3], |a, v| [a[0] + v[0], a[1] + v[1], a[2] + v[2]]),
         1.0 / m as f64,
     );
     let normal = normalise(cross(sub(verts[1], verts[0]), sub(verts[2], verts[0])));
@@ -207,7 +209,8 @@ pub fn hemisphere_polygon(
         return Err(Cull::BackFacing);
     }
     let (k, mo) = (2.0 / f64::from(n), (1.0 - f64::from(n)) / f64::from(n));
-    let sign = |q: [f64; 6]| quantise_for_sign(to_pixels(q, k, mo), format).ok_or(Cull::Unrepresentable);
+    let sign =
+        |q: [f64; 6]| quantise_for_sign(to_pixels(q, k, mo), format).ok_or(Cull::Unrepresentable);
     let window = |e: QeeExpr| e.sign_window((0, 0), n, n);
     let mut out = vec![Command::Logic {
         dst: Bit::Enable,
@@ -215,7 +218,7 @@ pub fn hemisphere_polygon(
         b: f.view,
         op: LogicOp::A,
     }];
-    let mut push_sign = |out: &mut Vec<Command>, q: [f64; 6], dst: Bit| -> Result<(), Cull> {
+    let push_sign = |out: &mut Vec<Command>, q: [f64; 6], dst: Bit| -> Result<(), Cull> {
         let e = sign(q)?;
         out.push(Command::QeeSign {
             expr: e,
@@ -231,7 +234,8 @@ pub fn hemisphere_polygon(
         if !pl.iter().all(|x| x.is_finite()) {
             return Err(Cull::Coplanar);
         }
-        let quad = |a: f64, b: f64, c: f64| [0.0, 0.0, -c * c, a * a + c * c, 2.0 * a * b, b * b + c * c];
+        let quad =
+            |a: f64, b: f64, c: f64| [0.0, 0.0, -c * c, a * a + c * c, 2.0 * a * b, b * b + c * c];
         match rule {
             EdgeRule::SignOfC => {
                 if dot(pl, centroid) < 0.0 {
@@ -373,7 +377,10 @@ pub fn view_setup(
             y: origin.1,
         },
         Command::enable_all(),
-        Command::WriteConst { dst: f.id, value: 0 },
+        Command::WriteConst {
+            dst: f.id,
+            value: 0,
+        },
         Command::WriteConst {
             dst: f.depth,
             value: 0,
@@ -469,7 +476,13 @@ pub enum Face {
 }
 
 impl Face {
-    pub const ALL: [Face; 5] = [Face::Top, Face::Side(0), Face::Side(1), Face::Side(2), Face::Side(3)];
+    pub const ALL: [Face; 5] = [
+        Face::Top,
+        Face::Side(0),
+        Face::Side(1),
+        Face::Side(2),
+        Face::Side(3),
+    ];
 
     /// (right, up, forward) axes in the shooter's frame.
     pub fn axes(self) -> (V3, V3, V3) {
@@ -546,7 +559,10 @@ pub fn hemicube_polygon(
         return Err(Cull::BackFacing);
     }
     let (r, u, fw) = face.axes();
-    let mut poly: Vec<V3> = verts.iter().map(|v| [dot(*v, r), dot(*v, u), dot(*v, fw)]).collect();
+    let mut poly: Vec<V3> = verts
+        .iter()
+        .map(|v| [dot(*v, r), dot(*v, u), dot(*v, fw)])
+        .collect();
     // The face's frustum: Z >= near, -Z <= X <= Z, and -Z <= Y <= Z (top) or 0 <= Y <= Z (side).
     let y_low = match face {
         Face::Top => [0.0, 1.0, 1.0, 0.0],
@@ -568,7 +584,12 @@ pub fn hemicube_polygon(
     let half = f64::from(n) / 2.0;
     let screen: Vec<(f64, f64)> = poly
         .iter()
-        .map(|p| ((p[0] / p[2] + 1.0) * half - 0.5, (p[1] / p[2] + 1.0) * half - 0.5))
+        .map(|p| {
+            (
+                (p[0] / p[2] + 1.0) * half - 0.5,
+                (p[1] / p[2] + 1.0) * half - 0.5,
+            )
+        })
         .collect();
     let area: f64 = (0..screen.len())
         .map(|i| {
@@ -594,7 +615,8 @@ pub fn hemicube_polygon(
         };
         let (a, b) = (-(q.1 - p.1), q.0 - p.0);
         let c = -(a * p.0 + b * p.1);
-        let vals = [(-1.0, -1.0), (max, -1.0), (-1.0, max), (max, max)].map(|(x, y)| a * x + b * y + c);
+        let vals =
+            [(-1.0, -1.0), (max, -1.0), (-1.0, max), (max, max)].map(|(x, y)| a * x + b * y + c);
         if vals.iter().all(|v| *v >= 0.0) {
             continue;
         }

@@ -1,0 +1,629 @@
+//! The scene file of the radiosity program: named planar convex polygons ("surfaces") with a
+//! reflectance and an emission, and an optional camera, in RON; loaded and checked with the same
+//! error reports as machine configs (file, line, column for syntax; for semantic problems the
+//! surface by index and name, e.g. `surfaces[3] (left wall).vertices[1]`).
+//!
+//! ```ron
+//! (
+//!     name: "one lit square",
+//!     provenance: "made up for the docs",
+//!     camera: Some((eye: (0.5, 0.5, 3), target: (0.5, 0.5, 0), up: (0, 1, 0),
+//!                   fov_y_degrees: 40, near: 0.1, far: 10)),
+//!     surfaces: [
+//!         // Counter-clockwise seen from +z, so its normal (right-hand rule) is +z.
+//!         (name: "floor", object: Some("room"), vertices: [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)],
+//!          reflectance: (0.5, 0.5, 0.5)),
+//!         (name: "lamp", vertices: [(0, 0, 1), (0, 1, 1), (1, 1, 1), (1, 0, 1)],
+//!          reflectance: (0, 0, 0), emission: (1, 1, 1)),
+//!     ],
+//! )
+//! ```
+//!
+//! A surface is a planar convex polygon of 3 or more vertices, listed counter-clockwise as seen
+//! from the side its normal points to (the normal follows the right-hand rule); it reflects and
+//! emits on that front side only. [`check_radiosity_scene`] enforces this (and finite numbers,
+//! reflectance in [0, 1), non-negative emission) so that the mesher and the form-factor code can
+//! rely on it instead of each guarding against degenerate input.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::scene::{Camera, TriangleScene, Vec3, check_triangle_scene};
+use crate::{ConfigError, SemanticError};
+
+/// A scene for the radiosity program.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RadiosityScene {
+    /// Short name, for reports.
+    pub name: String,
+    /// Where the data comes from and how it was adapted (free text).
+    #[serde(default)]
+    pub provenance: String,
+    /// A viewpoint for pictures of the solution; the radiosity solution itself does not need one.
+    #[serde(default)]
+    pub camera: Option<Camera>,
+    /// The polygons, in the order patches are generated.
+    pub surfaces: Vec<Surface>,
+}
+
+/// One planar convex polygon with its material.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Surface {
+    /// Names the surface in error reports and pictures.
+    pub name: String,
+    /// The object the surface belongs to (e.g. "tall block"), to group surfaces in reports.
+    #[serde(default)]
+    pub object: Option<String>,
+    /// 3 or more vertices, counter-clockwise seen from the front (the normal's side).
+    pub vertices: Vec<Vec3>,
+    /// Diffuse reflectance per colour band (R, G, B), each in [0, 1).
+    pub reflectance: Vec3,
+    /// Emitted radiosity per band (R, G, B), each >= 0; zero for a surface that only reflects.
+    #[serde(default)]
+    pub emission: Vec3,
+}
+
+/// The plane that best fits a polygon, see [`best_fit_plane`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Plane {
+    /// Unit normal, by the right-hand rule over the vertex order (Newell's method).
+    pub normal: Vec3,
+    /// A point of the plane: the mean of the vertices.
+    pub point: Vec3,
+    /// Area of the polygon projected onto the plane (the exact area for a planar polygon).
+    pub area: f64,
+}
+
+/// The best-fit plane of a polygon by Newell's method: the normal is the polygon's vector area
+/// (exact for planar polygons, the standard least-sensitive estimate for slightly non-planar ones)
+/// and the plane passes through the vertex mean.
+///
+/// `None` for fewer than 3 vertices, non-finite coordinates or zero vector area (collinear or
+/// coincident vertices), where no normal is defined.
+pub fn best_fit_plane(vertices: &[Vec3]) -> Option<Plane> {
+    if vertices.len() < 3 || !vertices.iter().all(|&v| finite(v)) {
+        return None;
+    }
+    // Relative to vertex 0, so the cross products of large, far-off coordinates do not cancel.
+    let origin = vertices[0];
+    let mut n = (0.0, 0.0, 0.0);
+    for k in 1..vertices.len() - 1 {
+        let c = cross(sub(vertices[k], origin), sub(vertices[k + 1], origin));
+        n = (n.0 + c.0, n.1 + c.1, n.2 + c.2);
+    }
+    let len = norm(n);
+    if !(len > 0.0 && len.is_finite()) {
+        return None;
+    }
+    let count = vertices.len() as f64;
+    let sum = vertices
+        .iter()
+        .fold((0.0, 0.0, 0.0), |s, v| (s.0 + v.0, s.1 + v.1, s.2 + v.2));
+    Some(Plane {
+        normal: (n.0 / len, n.1 / len, n.2 / len),
+        point: (sum.0 / count, sum.1 / count, sum.2 / count),
+        area: len / 2.0,
+    })
+}
+
+/// Length of the diagonal of a polygon's axis-aligned bounding box: the "size" that the
+/// planarity and degeneracy tolerances are relative to, so they do not depend on the units.
+pub fn polygon_size(vertices: &[Vec3]) -> f64 {
+    let Some(&first) = vertices.first() else {
+        return 0.0;
+    };
+    let (lo, hi) = vertices.iter().fold((first, first), |(lo, hi), v| {
+        (
+            (lo.0.min(v.0), lo.1.min(v.1), lo.2.min(v.2)),
+            (hi.0.max(v.0), hi.1.max(v.1), hi.2.max(v.2)),
+        )
+    });
+    norm(sub(hi, lo))
+}
+
+/// Largest distance of a vertex from the polygon's plane allowed, relative to its size.
+pub const PLANARITY_TOLERANCE: f64 = 1e-6;
+
+/// Below this area, relative to size squared, a polygon counts as having zero area: well above
+/// f64 rounding of a collinear polygon's vector area (about 1e-16), well below any real sliver.
+const ZERO_AREA: f64 = 1e-12;
+
+/// Below this sine of the turn between consecutive edges, a corner counts as straight (three
+/// collinear vertices): such a vertex gives the mesher and the hemisphere edge tests a zero-length
+/// or undefined edge plane.
+const STRAIGHT_CORNER: f64 = 1e-9;
+
+/// Read, parse and check a radiosity scene. The file's path (as given) names the source in errors.
+pub fn load_radiosity_scene(path: &Path) -> Result<RadiosityScene, ConfigError> {
+    let shown = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|source| ConfigError::Io {
+        path: shown.clone(),
+        source,
+    })?;
+    let text = match String::from_utf8(bytes) {
+        Ok(text) => text,
+        Err(e) => return Err(ConfigError::not_utf8(&shown, e.as_bytes(), e.utf8_error())),
+    };
+    parse_radiosity_scene(&shown, &text)
+}
+
+/// Parse and check a radiosity scene held in memory; `file_name` names it in errors.
+pub fn parse_radiosity_scene(file_name: &str, text: &str) -> Result<RadiosityScene, ConfigError> {
+    let scene: RadiosityScene = ron::Options::default()
+        .from_str(text)
+        .map_err(|e| ConfigError::syntax(file_name, text, &e))?;
+    check_radiosity_scene(&scene).map_err(|errors| ConfigError::Semantic {
+        file: file_name.to_string(),
+        errors,
+    })?;
+    Ok(scene)
+}
+
+fn finite(v: Vec3) -> bool {
+    v.0.is_finite() && v.1.is_finite() && v.2.is_finite()
+}
+
+fn sub(a: Vec3, b: Vec3) -> Vec3 {
+    (a.0 - b.0, a.1 - b.1, a.2 - b.2)
+}
+
+fn dot(a: Vec3, b: Vec3) -> f64 {
+    a.0 * b.0 + a.1 * b.1 + a.2 * b.2
+}
+
+fn cross(a: Vec3, b: Vec3) -> Vec3 {
+    (
+        a.1 * b.2 - a.2 * b.1,
+        a.2 * b.0 - a.0 * b.2,
+        a.0 * b.1 - a.1 * b.0,
+    )
+}
+
+fn norm(a: Vec3) -> f64 {
+    dot(a, a).sqrt()
+}
+
+/// Every problem of a scene, each naming the surface by index and name: no surfaces; non-finite
+/// numbers; fewer than 3 vertices; zero area; non-planar beyond [`PLANARITY_TOLERANCE`] (with the
+/// distance); non-convex, including repeated and collinear consecutive vertices; reflectance
+/// outside [0, 1); negative emission; a camera that cannot see.
+pub fn check_radiosity_scene(scene: &RadiosityScene) -> Result<(), Vec<SemanticError>> {
+    let mut errors = Vec::new();
+    if scene.surfaces.is_empty() {
+        errors.push(SemanticError {
+            path: "surfaces".into(),
+            value: "[]".into(),
+            rule: "must list at least one surface".into(),
+        });
+    }
+    if let Some(camera) = &scene.camera {
+        // The triangle scenes' camera rules apply unchanged, with the same `camera.*` paths:
+        // reuse them rather than keep two copies in step.
+        let probe = TriangleScene {
+            camera: camera.clone(),
+            triangles: Vec::new(),
+        };
+        if let Err(camera_errors) = check_triangle_scene(&probe) {
+            errors.extend(camera_errors);
+        }
+    }
+    for (i, surface) in scene.surfaces.iter().enumerate() {
+        check_surface(
+            &format!("surfaces[{i}] ({})", surface.name),
+            surface,
+            &mut errors,
+        );
+    }
+    if errors.is_empty() {
+        Ok(())
+    } else {
+        Err(errors)
+    }
+}
+
+/// The checks of one surface; `at` is its path prefix `surfaces[i] (name)`.
+fn check_surface(at: &str, s: &Surface, errors: &mut Vec<SemanticError>) {
+    let mut err = |path: String, value: String, rule: String| {
+        errors.push(SemanticError { path, value, rule })
+    };
+    let r = s.reflectance;
+    if ![r.0, r.1, r.2].iter().all(|c| (0.0..1.0).contains(c)) {
+        err(
+            format!("{at}.reflectance"),
+            format!("{r:?}"),
+            "components must be in [0, 1): a reflectance of 1 or more never lets the light \
+             converge"
+                .into(),
+        );
+    }
+    let e = s.emission;
+    if ![e.0, e.1, e.2].iter().all(|c| c.is_finite() && *c >= 0.0) {
+        err(
+            format!("{at}.emission"),
+            format!("{e:?}"),
+            "components must be finite and >= 0".into(),
+        );
+    }
+    if s.vertices.len() < 3 {
+        err(
+            format!("{at}.vertices"),
+            format!("{} vertices", s.vertices.len()),
+            "a surface is a polygon and needs at least 3 vertices".into(),
+        );
+    }
+    let mut all_finite = true;
+    for (k, &v) in s.vertices.iter().enumerate() {
+        if !finite(v) {
+            all_finite = false;
+            err(
+                format!("{at}.vertices[{k}]"),
+                format!("{v:?}"),
+                "must be finite numbers".into(),
+            );
+        }
+    }
+    if s.vertices.len() < 3 || !all_finite {
+        return;
+    }
+    let v = &s.vertices;
+    let n = v.len();
+    let size = polygon_size(v);
+    let plane = best_fit_plane(v).filter(|p| size > 0.0 && p.area > ZERO_AREA * size * size);
+    let Some(plane) = plane else {
+        err(
+            format!("{at}.vertices"),
+            format!("{v:?}"),
+            "has zero area (coincident or collinear vertices)".into(),
+        );
+        return;
+    };
+
+    // Planarity: the worst vertex's distance from the best-fit plane.
+    let (worst, distance) = v
+        .iter()
+        .map(|&p| dot(plane.normal, sub(p, plane.point)).abs())
+        .enumerate()
+        .fold(
+            (0, 0.0),
+            |best, (k, d)| if d > best.1 { (k, d) } else { best },
+        );
+    let limit = PLANARITY_TOLERANCE * size;
+    if distance > limit {
+        err(
+            format!("{at}.vertices[{worst}]"),
+            format!("{:?}, {distance:.6} from the best-fit plane", v[worst]),
+            format!(
+                "a surface must be planar: every vertex within {PLANARITY_TOLERANCE:e} x the \
+                 polygon's size ({limit:.3e}) of its best-fit plane; split it into triangles"
+            ),
+        );
+    }
+
+    // Convexity: every corner must turn the same way as the polygon's normal (left, seen from
+    // the front), and the turns must add up to one full turn, not two or more (a pentagram turns
+    // left at every corner but is not convex).
+    let mut total_turn = 0.0;
+    let mut convex = true;
+    for k in 0..n {
+        let (prev, here, next) = (v[(k + n - 1) % n], v[k], v[(k + 1) % n]);
+        let (e1, e2) = (sub(here, prev), sub(next, here));
+        let (l1, l2) = (norm(e1), norm(e2));
+        if l2 <= ZERO_AREA * size {
+            convex = false;
+            err(
+                format!("{at}.vertices[{}]", (k + 1) % n),
+                format!("{next:?}"),
+                format!("repeats vertex {k}: consecutive vertices must differ"),
+            );
+            continue;
+        }
+        if l1 <= ZERO_AREA * size {
+            // Reported as a repeat at the previous corner.
+            convex = false;
+            continue;
+        }
+        let sine = dot(plane.normal, cross(e1, e2)) / (l1 * l2);
+        let cosine = dot(e1, e2) / (l1 * l2);
+        total_turn += sine.atan2(cosine);
+        if sine.abs() <= STRAIGHT_CORNER && cosine > 0.0 {
+            convex = false;
+            err(
+                format!("{at}.vertices[{k}]"),
+                format!("{here:?}"),
+                "is collinear with its neighbours: remove it (a straight corner has no \
+                 defined turn)"
+                    .into(),
+            );
+        } else if sine <= STRAIGHT_CORNER {
+            convex = false;
+            err(
+                format!("{at}.vertices[{k}]"),
+                format!("{here:?}"),
+                "makes the polygon non-convex (the corner turns clockwise seen from the front, \
+                 or folds back); split the surface into convex pieces"
+                    .into(),
+            );
+        }
+    }
+    if convex && total_turn > 3.0 * std::f64::consts::PI {
+        err(
+            format!("{at}.vertices"),
+            format!(
+                "turns {:.1} times around",
+                total_turn / std::f64::consts::TAU
+            ),
+            "is not convex: its edges cross (the outline must wind around once)".into(),
+        );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"(
+        name: "test",
+        camera: Some((eye: (0.5, 0.5, 3), target: (0.5, 0.5, 0), up: (0, 1, 0),
+                      fov_y_degrees: 40, near: 0.1, far: 10)),
+        surfaces: [
+            (name: "floor", object: Some("room"), vertices: [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)],
+             reflectance: (0.5, 0.5, 0.5)),
+            (name: "lamp", vertices: [(0, 0, 1), (0, 1, 1), (1, 0, 1)],
+             reflectance: (0, 0, 0), emission: (1, 1, 1)),
+        ],
+    )"#;
+
+    /// The error text of `GOOD` with `from` replaced by `to`.
+    fn error_of(from: &str, to: &str) -> String {
+        assert!(GOOD.contains(from), "{from}");
+        let text = GOOD.replacen(from, to, 1);
+        match parse_radiosity_scene("s.ron", &text) {
+            Ok(_) => panic!("{to} was accepted"),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    fn surface(vertices: &[Vec3]) -> RadiosityScene {
+        RadiosityScene {
+            name: "one".into(),
+            provenance: String::new(),
+            camera: None,
+            surfaces: vec![Surface {
+                name: "poly".into(),
+                object: None,
+                vertices: vertices.to_vec(),
+                reflectance: (0.5, 0.5, 0.5),
+                emission: (0.0, 0.0, 0.0),
+            }],
+        }
+    }
+
+    fn errors_of(vertices: &[Vec3]) -> Vec<SemanticError> {
+        check_radiosity_scene(&surface(vertices))
+            .err()
+            .unwrap_or_default()
+    }
+
+    #[test]
+    fn parses_a_scene_and_the_docs_example() {
+        let s = parse_radiosity_scene("s.ron", GOOD).unwrap();
+        assert_eq!(s.surfaces.len(), 2);
+        assert_eq!(s.surfaces[0].object.as_deref(), Some("room"));
+        assert_eq!(s.surfaces[0].emission, (0.0, 0.0, 0.0));
+        assert_eq!(s.provenance, "");
+        let docs = "(name: \"one lit square\", provenance: \"made up for the docs\", \
+            camera: Some((eye: (0.5, 0.5, 3), target: (0.5, 0.5, 0), up: (0, 1, 0), \
+            fov_y_degrees: 40, near: 0.1, far: 10)), surfaces: [\
+            (name: \"floor\", object: Some(\"room\"), vertices: [(0, 0, 0), (1, 0, 0), (1, 1, 0), \
+            (0, 1, 0)], reflectance: (0.5, 0.5, 0.5)), (name: \"lamp\", vertices: [(0, 0, 1), \
+            (0, 1, 1), (1, 1, 1), (1, 0, 1)], reflectance: (0, 0, 0), emission: (1, 1, 1))])";
+        parse_radiosity_scene("docs.ron", docs).unwrap();
+    }
+
+    #[test]
+    fn plane_and_size() {
+        let p = best_fit_plane(&[(0.0, 0.0, 0.0), (2.0, 0.0, 0.0), (2.0, 3.0, 0.0)]).unwrap();
+        assert_eq!(p.normal, (0.0, 0.0, 1.0));
+        assert_eq!(p.area, 3.0);
+        assert!(best_fit_plane(&[(0.0, 0.0, 0.0), (1.0, 1.0, 1.0), (2.0, 2.0, 2.0)]).is_none());
+        assert!(best_fit_plane(&[(0.0, 0.0, 0.0), (1.0, 0.0, 0.0)]).is_none());
+        assert!(
+            best_fit_plane(&[(f64::NAN, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)]).is_none()
+        );
+        assert_eq!(polygon_size(&[(0.0, 0.0, 0.0), (3.0, 4.0, 0.0)]), 5.0);
+        assert_eq!(polygon_size(&[]), 0.0);
+    }
+
+    #[test]
+    fn nan_and_infinite_vertices_name_the_surface_and_vertex() {
+        let e = error_of("(1, 1, 0)", "(1, NaN, 0)");
+        assert!(e.contains("surfaces[0] (floor).vertices[2]"), "{e}");
+        assert!(e.contains("finite"), "{e}");
+        let e = error_of("(0, 1, 1)", "(0, inf, 1)");
+        assert!(e.contains("surfaces[1] (lamp).vertices[1]"), "{e}");
+    }
+
+    #[test]
+    fn too_few_vertices() {
+        let e = error_of("(0, 0, 1), (0, 1, 1), (1, 0, 1)", "(0, 0, 1), (0, 1, 1)");
+        assert!(
+            e.contains("surfaces[1] (lamp).vertices") && e.contains("2 vertices"),
+            "{e}"
+        );
+        let e = error_of("(0, 0, 1), (0, 1, 1), (1, 0, 1)", "");
+        assert!(e.contains("0 vertices"), "{e}");
+    }
+
+    #[test]
+    fn zero_area() {
+        let e = error_of(
+            "(0, 0, 1), (0, 1, 1), (1, 0, 1)",
+            "(0, 0, 1), (0, 1, 1), (0, 2, 1)",
+        );
+        assert!(
+            e.contains("surfaces[1] (lamp).vertices") && e.contains("zero area"),
+            "{e}"
+        );
+        let e = error_of(
+            "(0, 0, 1), (0, 1, 1), (1, 0, 1)",
+            "(2, 2, 2), (2, 2, 2), (2, 2, 2)",
+        );
+        assert!(e.contains("zero area"), "{e}");
+    }
+
+    #[test]
+    fn non_planar_says_by_how_much() {
+        let e = error_of("(1, 1, 0)", "(1, 1, 0.004)");
+        assert!(e.contains("surfaces[0] (floor).vertices["), "{e}");
+        assert!(
+            e.contains("planar") && e.contains("0.001000 from the best-fit plane"),
+            "{e}"
+        );
+        // Within the tolerance: accepted (1e-7 of a size of sqrt(2)).
+        let text = GOOD.replacen("(1, 1, 0)", "(1, 1, 1e-7)", 1);
+        parse_radiosity_scene("s.ron", &text).unwrap();
+    }
+
+    #[test]
+    fn non_convex_repeated_collinear_and_crossed() {
+        // A reflex corner at vertex 2.
+        let e = errors_of(&[
+            (0.0, 0.0, 0.0),
+            (2.0, 0.0, 0.0),
+            (1.0, 0.5, 0.0),
+            (1.0, 2.0, 0.0),
+        ]);
+        assert_eq!(e.len(), 1, "{e:?}");
+        assert_eq!(e[0].path, "surfaces[0] (poly).vertices[2]");
+        assert!(e[0].rule.contains("non-convex"), "{e:?}");
+        // A repeated vertex.
+        let e = errors_of(&[
+            (0.0, 0.0, 0.0),
+            (1.0, 0.0, 0.0),
+            (1.0, 0.0, 0.0),
+            (0.0, 1.0, 0.0),
+        ]);
+        assert!(
+            e.iter()
+                .any(|e| e.path == "surfaces[0] (poly).vertices[2]" && e.rule.contains("repeats")),
+            "{e:?}"
+        );
+        // A collinear middle vertex.
+        let e = errors_of(&[
+            (0.0, 0.0, 0.0),
+            (1.0, 0.0, 0.0),
+            (2.0, 0.0, 0.0),
+            (0.0, 1.0, 0.0),
+        ]);
+        assert!(
+            e.iter()
+                .any(|e| e.path == "surfaces[0] (poly).vertices[1]" && e.rule.contains("collinear")),
+            "{e:?}"
+        );
+        // A folded-back corner (the polygon doubles back along an edge).
+        let e = errors_of(&[
+            (0.0, 0.0, 0.0),
+            (2.0, 0.0, 0.0),
+            (1.0, 0.0, 0.0),
+            (0.0, 1.0, 0.0),
+        ]);
+        assert!(!e.is_empty());
+        // A pentagram: every corner turns left, but it winds twice.
+        let star: Vec<Vec3> = (0..5)
+            .map(|k| {
+                let a = std::f64::consts::TAU * (2 * k) as f64 / 5.0;
+                (a.cos(), a.sin(), 0.0)
+            })
+            .collect();
+        let e = errors_of(&star);
+        assert!(
+            e.iter()
+                .any(|e| e.value.contains("2.0 times") && e.rule.contains("cross")),
+            "{e:?}"
+        );
+        // Clockwise is fine: it only flips the normal.
+        assert!(errors_of(&[(0.0, 0.0, 0.0), (0.0, 1.0, 0.0), (1.0, 0.0, 0.0)]).is_empty());
+    }
+
+    #[test]
+    fn reflectance_and_emission_limits() {
+        let e = error_of(
+            "reflectance: (0.5, 0.5, 0.5)",
+            "reflectance: (0.5, 1.0, 0.5)",
+        );
+        assert!(
+            e.contains("surfaces[0] (floor).reflectance") && e.contains("[0, 1)"),
+            "{e}"
+        );
+        let e = error_of(
+            "reflectance: (0.5, 0.5, 0.5)",
+            "reflectance: (-0.1, 0.5, NaN)",
+        );
+        assert!(e.contains("surfaces[0] (floor).reflectance"), "{e}");
+        let e = error_of("emission: (1, 1, 1)", "emission: (1, -1, 1)");
+        assert!(
+            e.contains("surfaces[1] (lamp).emission") && e.contains(">= 0"),
+            "{e}"
+        );
+        let e = error_of("emission: (1, 1, 1)", "emission: (1, inf, 1)");
+        assert!(e.contains("surfaces[1] (lamp).emission"), "{e}");
+    }
+
+    #[test]
+    fn empty_scene_and_empty_file() {
+        let e = parse_radiosity_scene("s.ron", "(name: \"x\", surfaces: [])")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("surfaces: must list at least one surface"),
+            "{e}"
+        );
+        let e = parse_radiosity_scene("s.ron", "").unwrap_err().to_string();
+        assert!(e.starts_with("s.ron:1:"), "{e}");
+        let e = parse_radiosity_scene("s.ron", "  \n ")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("s.ron:"), "{e}");
+    }
+
+    #[test]
+    fn camera_and_field_errors() {
+        let e = error_of("fov_y_degrees: 40", "fov_y_degrees: 0");
+        assert!(e.contains("camera.fov_y_degrees"), "{e}");
+        let e = error_of("reflectance: (0.5", "reflectence: (0.5");
+        assert!(e.contains("s.ron:") && e.contains("reflectence"), "{e}");
+        // Several problems are all reported.
+        let text = GOOD.replacen("(1, 1, 0)", "(1, NaN, 0)", 1).replacen(
+            "emission: (1, 1, 1)",
+            "emission: (-1, 1, 1)",
+            1,
+        );
+        let err = parse_radiosity_scene("s.ron", &text).unwrap_err();
+        assert_eq!(err.semantic_errors().len(), 2, "{err}");
+    }
+
+    #[test]
+    fn load_reports_missing_and_non_utf8_files() {
+        let dir =
+            std::env::temp_dir().join(format!("pxpl5-radiosity-scene-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let missing = dir.join("missing.ron");
+        assert!(matches!(
+            load_radiosity_scene(&missing),
+            Err(ConfigError::Io { .. })
+        ));
+        let bad = dir.join("bad.ron");
+        std::fs::write(&bad, b"(name: \"\xff\")").unwrap();
+        assert!(matches!(
+            load_radiosity_scene(&bad),
+            Err(ConfigError::NotUtf8 { .. })
+        ));
+        let good = dir.join("good.ron");
+        std::fs::write(&good, GOOD).unwrap();
+        assert_eq!(load_radiosity_scene(&good).unwrap().surfaces.len(), 2);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

@@ -1,0 +1,482 @@
+//! One shot's form factors on the simulated machine, as GP code: every GP sends the commands of
+//! the receivers it owns to the Renderers holding the views (the hemisphere, its tiles, or the
+//! hemicube's faces), the ID fields are read back in row bands, one band per GP, and each GP sums
+//! the delta form factors of its band per ID.
+//!
+//! Ordering between senders is made explicit, since the ring only keeps order between two units:
+//! a Renderer's set-up is followed by a one-pixel readback to GP 0 (a fence: it arrives after the
+//! set-up has executed), and every GP fences each Renderer it drew on before it reports to GP 0,
+//! which then orders the readbacks. Views are processed in rounds of at most one view per
+//! Renderer.
+
+use std::collections::BTreeMap;
+
+use pxpl5_machine::{Gp, Op, Payload, ProgramError, Unit};
+use pxpl5_renderer::{Command, Rect, readback};
+
+use crate::views::{
+    Cull, EdgeRule, Face, Frame, V3, ViewFields, hemicube_delta_ff, hemicube_polygon,
+    hemisphere_delta_ff, hemisphere_polygon, view_setup,
+};
+
+/// How form factors are computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    Hemisphere,
+    Hemicube,
+}
+
+impl Method {
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Hemisphere => "hemisphere",
+            Method::Hemicube => "hemicube",
+        }
+    }
+}
+
+/// The options of a form-factor computation.
+#[derive(Clone, Copy, Debug)]
+pub struct FfOptions {
+    pub method: Method,
+    /// Pixels across the hemisphere's disk or the hemicube's top face.
+    pub resolution: u32,
+    pub edge_rule: EdgeRule,
+    /// Hemisphere delta form factors: the exact disk rule (true) or the seed's integral rule.
+    pub exact_delta: bool,
+    /// Hemicube: skip faces a receiver cannot touch after a cheap test (a real implementation
+    /// would); otherwise every receiver is transformed and clipped for every face.
+    pub skip_faces: bool,
+}
+
+impl Default for FfOptions {
+    fn default() -> FfOptions {
+        FfOptions {
+            method: Method::Hemisphere,
+            resolution: 128,
+            edge_rule: EdgeRule::SignOfC,
+            exact_delta: true,
+            skip_faces: true,
+        }
+    }
+}
+
+/// A receiving polygon (scene coordinates) and its ID (1-based; 0 is "nothing").
+#[derive(Clone, Debug)]
+pub struct Receiver {
+    pub id: u16,
+    pub vertices: Vec<V3>,
+}
+
+/// One view: where it is drawn and how its pixels weigh.
+#[derive(Clone, Debug)]
+struct View {
+    renderer: u32,
+    kind: ViewKind,
+    /// QEE origin of the board.
+    origin: (u32, u32),
+    /// Array pixels used: width x rows.
+    width: u32,
+    rows: u32,
+    /// Delta form factor of each used pixel, row-major over (rows x width).
+    delta: Vec<f64>,
+}
+
+#[derive(Clone, Copy, Debug)]
+enum ViewKind {
+    /// A tile of the disk of `n` pixels across.
+    Disk {
+        n: u32,
+    },
+    Face {
+        face: Face,
+        n: u32,
+    },
+}
+
+/// Counts of what the GPs culled, per reason.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct CullCounts {
+    pub back_facing: u64,
+    pub below_horizon: u64,
+    pub coplanar: u64,
+    pub outside_face: u64,
+    pub unrepresentable: u64,
+}
+
+impl CullCounts {
+    fn add(&mut self, c: Cull) {
+        match c {
+            Cull::BackFacing => self.back_facing += 1,
+            Cull::BelowHorizon => self.below_horizon += 1,
+            Cull::Coplanar => self.coplanar += 1,
+            Cull::OutsideFace => self.outside_face += 1,
+            Cull::Unrepresentable => self.unrepresentable += 1,
+        }
+    }
+}
+
+/// The views of `opts` on a machine with `renderers` boards of `side` pixels.
+fn views(opts: &FfOptions, renderers: u32, side: u32) -> Result<Vec<View>, ProgramError> {
+    let n = opts.resolution;
+    let mut out = Vec::new();
+    match opts.method {
+        Method::Hemisphere => {
+            let tiles = n.div_ceil(side);
+            if tiles * tiles > renderers {
+                return Err(ProgramError(format!(
+                    "a hemisphere of {n} pixels needs {} Renderers of {side} x {side}; the \
+                     machine has {renderers}",
+                    tiles * tiles
+                )));
+            }
+            let table = hemisphere_delta_ff(n as usize, opts.exact_delta);
+            for ty in 0..tiles {
+                for tx in 0..tiles {
+                    let (x0, y0) = (tx * side, ty * side);
+                    let (w, h) = (side.min(n - x0), side.min(n - y0));
+                    let mut delta = Vec::with_capacity((w * h) as usize);
+                    for t in 0..h {
+                        for s in 0..w {
+                            delta.push(table[((y0 + t) * n + x0 + s) as usize]);
+                        }
+                    }
+                    out.push(View {
+                        renderer: ty * tiles + tx,
+                        kind: ViewKind::Disk { n },
+                        origin: (x0, y0),
+                        width: w,
+                        rows: h,
+                        delta,
+                    });
+                }
+            }
+        }
+        Method::Hemicube => {
+            if n > side {
+                return Err(ProgramError(format!(
+                    "a hemicube face of {n} pixels does not fit a {side} x {side} Renderer"
+                )));
+            }
+            let mut total = 0.0;
+            let mut faces = Vec::new();
+            for (i, face) in Face::ALL.into_iter().enumerate() {
+                let delta = hemicube_delta_ff(face, n as usize);
+                total += delta.iter().sum::<f64>();
+                faces.push((i as u32, face, delta));
+            }
+            for (i, face, delta) in faces {
+                out.push(View {
+                    renderer: i % renderers,
+                    kind: ViewKind::Face { face, n },
+                    origin: (0, face.row0(n)),
+                    width: n,
+                    rows: face.rows(n),
+                    delta: delta.iter().map(|d| d / total).collect(),
+                });
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Tags of the program's Data messages.
+const TAG_GO: u64 = 1;
+const TAG_DONE: u64 = 2;
+
+/// The largest command message, in words (under the ring's 1,024-word packets).
+const MAX_WORDS: u32 = 1000;
+
+/// Partial form factors this GP summed: receiver id -> F.
+pub type Partial = BTreeMap<u16, f64>;
+
+/// A GP's receive side with selective receive: messages that arrive before the program wants
+/// them (a GP's "done" while GP 0 still waits for its own fences, the next round's "go" while a
+/// GP still reads back) wait in the stash, in arrival order.
+#[derive(Default)]
+pub struct Mailbox {
+    stash: std::collections::VecDeque<pxpl5_machine::Message>,
+}
+
+impl Mailbox {
+    /// The first message (stashed or new) that `want` accepts.
+    pub async fn recv_where(
+        &mut self,
+        gp: &Gp,
+        want: impl Fn(&pxpl5_machine::Message) -> bool,
+    ) -> pxpl5_machine::Message {
+        if let Some(i) = self.stash.iter().position(&want) {
+            return self.stash.remove(i).expect("found");
+        }
+        loop {
+            let m = gp.recv().await;
+            if want(&m) {
+                return m;
+            }
+            self.stash.push_back(m);
+        }
+    }
+
+    /// The next Data message with `tag`.
+    pub async fn data(&mut self, gp: &Gp, tag: u64) -> pxpl5_machine::Message {
+        self.recv_where(
+            gp,
+            |m| matches!(m.payload, Payload::Data { tag: t, .. } if t == tag),
+        )
+        .await
+    }
+
+    /// The next Pixels message from Renderer `r`.
+    pub async fn pixels(&mut self, gp: &Gp, r: u32) -> pxpl5_machine::Message {
+        self.recv_where(gp, |m| {
+            m.from == Unit::Renderer(r) && matches!(m.payload, Payload::Pixels { .. })
+        })
+        .await
+    }
+}
+
+/// Compute one shot's form factors from `p` with normal `normal`: every GP runs this with the
+/// receivers it owns; each returns the partial sums of its band of every view. `scale` is the
+/// scene's size (the same on every GP).
+pub async fn shoot(
+    gp: &Gp,
+    opts: &FfOptions,
+    p: V3,
+    normal: V3,
+    scale: f64,
+    receivers: &[Receiver],
+    culls: &mut CullCounts,
+    mail: &mut Mailbox,
+) -> Result<Partial, ProgramError> {
+    let rc = gp.renderer_config().clone();
+    let side = rc.width.min(rc.height);
+    let format = rc.qee.coefficient_format;
+    let word_bits = gp.ring_word_bits();
+    let coefficient_bits = format.total_bits();
+    let fields =
+        ViewFields::allocate(rc.pixel_memory_bits).map_err(|e| ProgramError(e.to_string()))?;
+    let all_views = views(opts, gp.renderer_count(), side)?;
+    let (g, gps) = (gp.index(), gp.gp_count());
+    let frame = Frame::new(p, normal, scale);
+    let mut partial = Partial::new();
+
+    // The receivers in the shooter's frame (one transform per vertex per shot).
+    gp.compute(
+        Op::VertexTransform,
+        receivers.iter().map(|r| r.vertices.len() as u64).sum(),
+    )
+    .await;
+    let local: Vec<Vec<V3>> = receivers
+        .iter()
+        .map(|r| r.vertices.iter().map(|v| frame.local(*v)).collect())
+        .collect();
+
+    let renderers = gp.renderer_count();
+    let rounds: Vec<Vec<View>> = {
+        let mut rounds: Vec<Vec<View>> = Vec::new();
+        for v in all_views {
+            match rounds
+                .iter_mut()
+                .find(|r| r.iter().all(|x| x.renderer != v.renderer))
+            {
+                Some(r) if r.len() < renderers as usize => r.push(v),
+                _ => rounds.push(vec![v]),
+            }
+        }
+        rounds
+    };
+
+    for round in &rounds {
+        // 1. GP 0 prepares the round's boards and waits for their fences; then says go.
+        gp.phase("renderer setup");
+        if g == 0 {
+            for v in round {
+                let (n, rows) = match v.kind {
+                    ViewKind::Disk { n } => (n, n),
+                    ViewKind::Face { face, n } => (n, face.rows(n)),
+                };
+                let mut cmds = view_setup(
+                    matches!(v.kind, ViewKind::Disk { .. }),
+                    n,
+                    v.origin,
+                    rows,
+                    &fields,
+                    format,
+                );
+                cmds.push(fence(&fields, 0));
+                gp.send_commands(v.renderer, cmds).await;
+            }
+            for v in round {
+                mail.pixels(gp, v.renderer).await;
+            }
+            for other in 1..gps {
+                gp.send(Unit::Gp(other), go(TAG_GO)).await;
+            }
+        } else {
+            mail.data(gp, TAG_GO).await;
+        }
+
+        // 2. Every GP draws its receivers in every view of the round.
+        gp.phase("gp setup and send");
+        let mut touched = Vec::new();
+        for v in round {
+            let mut batch: Vec<Command> = Vec::new();
+            let mut words = 0;
+            for (r, verts) in receivers.iter().zip(&local) {
+                gp.compute(Op::ClipTest, verts.len() as u64).await;
+                let drawn = match v.kind {
+                    ViewKind::Disk { n } => {
+                        hemisphere_polygon(verts, r.id, n, opts.edge_rule, &fields, format)
+                    }
+                    ViewKind::Face { face, n } => {
+                        if opts.skip_faces && !may_touch(verts, face) {
+                            Err(Cull::OutsideFace)
+                        } else {
+                            gp.compute(Op::VertexTransform, verts.len() as u64).await;
+                            hemicube_polygon(verts, r.id, face, n, &fields, format)
+                        }
+                    }
+                };
+                let cmds = match drawn {
+                    Ok(c) => c,
+                    Err(c) => {
+                        culls.add(c);
+                        continue;
+                    }
+                };
+                gp.compute(Op::PolygonSetup, 1).await;
+                let expressions = cmds.iter().filter(|c| c.qee().is_some()).count() as u64;
+                gp.compute(Op::EdgeSetup, expressions).await;
+                let w: u32 = cmds
+                    .iter()
+                    .map(|c| c.words(coefficient_bits, word_bits))
+                    .sum();
+                if words + w > MAX_WORDS && !batch.is_empty() {
+                    gp.send_commands(v.renderer, std::mem::take(&mut batch))
+                        .await;
+                    words = 0;
+                }
+                batch.extend(cmds);
+                words += w;
+            }
+            if !batch.is_empty() {
+                gp.send_commands(v.renderer, batch).await;
+                touched.push(v.renderer);
+            }
+        }
+        // Fence every board this GP drew on, then report to GP 0.
+        gp.phase("renderer work");
+        for &r in &touched {
+            gp.send_commands(r, vec![fence(&fields, g)]).await;
+        }
+        for &r in &touched {
+            mail.pixels(gp, r).await;
+        }
+        if g == 0 {
+            for _ in 1..gps {
+                mail.data(gp, TAG_DONE).await;
+            }
+            // 3. Read the IDs back: each view in row bands, one band per GP.
+            for v in round {
+                for band in 0..gps {
+                    let (y0, y1) = band_rows(v.rows, gps, band);
+                    if y0 == y1 {
+                        continue;
+                    }
+                    let cmd = Command::Readback {
+                        field: fields.id,
+                        rect: Rect {
+                            x: 0,
+                            y: y0,
+                            width: v.width,
+                            height: y1 - y0,
+                        },
+                        dest: Unit::Gp(band).encode(),
+                        tag: 0,
+                    };
+                    gp.send_commands(v.renderer, vec![cmd]).await;
+                }
+            }
+        } else {
+            gp.send(Unit::Gp(0), go(TAG_DONE)).await;
+        }
+
+        // 4. Receive this GP's band of every view and sum the delta form factors per ID.
+        gp.phase("id readback");
+        for v in round {
+            let (y0, y1) = band_rows(v.rows, gps, g);
+            let mut remaining = (v.width * (y1 - y0)) as u64;
+            while remaining > 0 {
+                let m = mail.pixels(gp, v.renderer).await;
+                let Payload::Pixels {
+                    rect, bits, words, ..
+                } = m.payload
+                else {
+                    return Err(ProgramError(format!(
+                        "GP {g}: expected ID pixels, got {m:?}"
+                    )));
+                };
+                let count = (rect.width * rect.height) as usize;
+                let ids = readback::unpack(&words, bits, word_bits, count);
+                gp.phase("accumulate");
+                gp.compute(Op::FfAccumulatePerPixel, count as u64).await;
+                for (i, &id) in ids.iter().enumerate() {
+                    if id == 0 {
+                        continue;
+                    }
+                    let (s, t) = (i as u32 % rect.width, rect.y + i as u32 / rect.width);
+                    *partial.entry(id as u16).or_default() += v.delta[(t * v.width + s) as usize];
+                }
+                remaining -= count as u64;
+                gp.phase("id readback");
+            }
+        }
+    }
+    Ok(partial)
+}
+
+/// A one-pixel readback of the ID field to GP `g`: it executes after every earlier command on
+/// the board, so its arrival tells `g` that they are done.
+fn fence(f: &ViewFields, g: u32) -> Command {
+    Command::Readback {
+        field: f.id,
+        rect: Rect {
+            x: 0,
+            y: 0,
+            width: 1,
+            height: 1,
+        },
+        dest: Unit::Gp(g).encode(),
+        tag: 0,
+    }
+}
+
+fn go(tag: u64) -> Payload {
+    Payload::Data {
+        tag,
+        values: Vec::new(),
+        words: 1,
+    }
+}
+
+/// Rows `y0 .. y1` of band `band` of `rows` rows split over `gps` GPs.
+fn band_rows(rows: u32, gps: u32, band: u32) -> (u32, u32) {
+    (rows * band / gps, rows * (band + 1) / gps)
+}
+
+/// The cheap test of `skip_faces`: false only if every vertex is outside the same plane of the
+/// face's frustum.
+fn may_touch(verts: &[V3], face: Face) -> bool {
+    let (r, u, f) = face.axes();
+    let planes: Vec<Box<dyn Fn(V3) -> f64>> = vec![
+        Box::new(move |p: V3| crate::views::dot(p, f)),
+        Box::new(move |p: V3| crate::views::dot(p, f) - crate::views::dot(p, r)),
+        Box::new(move |p: V3| crate::views::dot(p, f) + crate::views::dot(p, r)),
+        Box::new(move |p: V3| crate::views::dot(p, f) - crate::views::dot(p, u)),
+        Box::new(move |p: V3| match face {
+            Face::Top => crate::views::dot(p, f) + crate::views::dot(p, u),
+            Face::Side(_) => crate::views::dot(p, u),
+        }),
+    ];
+    planes.iter().all(|pl| verts.iter().any(|v| pl(*v) >= 0.0))
+}

@@ -1,0 +1,358 @@
+//! Tests of the exact point-to-polygon form factor against the closed forms of Howell's catalog
+//! (radiosity-formulas.md section 4), its invariances, the horizon clipping, degenerate shapes,
+//! and additivity: from inside a closed box the form factors to the six faces sum to 1.
+
+use std::f64::consts::TAU;
+
+use pxpl5_radiosity::exact::point_to_polygon;
+use pxpl5_radiosity::scenes::{closed_box, empty_box};
+
+const UP: [f64; 3] = [0.0, 0.0, 1.0];
+
+fn rel_err(got: f64, want: f64) -> f64 {
+    (got - want).abs() / want.abs()
+}
+
+/// dA to a parallel a x b rectangle at distance c, the normal through a corner.
+fn parallel_corner(a: f64, b: f64, c: f64) -> f64 {
+    let (x, y) = (a / c, b / c);
+    let (sx, sy) = ((1.0 + x * x).sqrt(), (1.0 + y * y).sqrt());
+    (x / sx * (y / sx).atan() + y / sy * (x / sy).atan()) / TAU
+}
+
+/// dA to a perpendicular a x b rectangle sharing the element's plane along its edge of length a,
+/// the element at distance c from that edge on the normal through a corner.
+fn perpendicular(a: f64, b: f64, c: f64) -> f64 {
+    let d = (b * b + c * c).sqrt();
+    ((a / c).atan() - c / d * (a / d).atan()) / TAU
+}
+
+/// The rectangle of `parallel_corner`, seen from the origin with normal +z.
+fn parallel_rectangle(a: f64, b: f64, c: f64) -> Vec<[f64; 3]> {
+    vec![[0.0, 0.0, c], [a, 0.0, c], [a, b, c], [0.0, b, c]]
+}
+
+/// The rectangle of `perpendicular`, seen from the origin with normal +z: in the plane y = c,
+/// x from 0 to a along the shared edge, z from 0 to b.
+fn perpendicular_rectangle(a: f64, b: f64, c: f64) -> Vec<[f64; 3]> {
+    vec![[0.0, c, 0.0], [a, c, 0.0], [a, c, b], [0.0, c, b]]
+}
+
+/// Deterministic pseudo-random numbers in [0, 1) (SplitMix64).
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^= z >> 31;
+        (z >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// A uniformly distributed unit vector (rejection from the cube).
+    fn direction(&mut self) -> [f64; 3] {
+        loop {
+            let v = [
+                2.0 * self.next() - 1.0,
+                2.0 * self.next() - 1.0,
+                2.0 * self.next() - 1.0,
+            ];
+            let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            if len > 0.1 && len <= 1.0 {
+                return [v[0] / len, v[1] / len, v[2] / len];
+            }
+        }
+    }
+}
+
+/// Rotation by `angle` about the unit `axis` (Rodrigues).
+fn rotate(v: [f64; 3], axis: [f64; 3], angle: f64) -> [f64; 3] {
+    let (s, c) = angle.sin_cos();
+    let k = axis;
+    let kxv = [
+        k[1] * v[2] - k[2] * v[1],
+        k[2] * v[0] - k[0] * v[2],
+        k[0] * v[1] - k[1] * v[0],
+    ];
+    let kv = k[0] * v[0] + k[1] * v[1] + k[2] * v[2];
+    [
+        v[0] * c + kxv[0] * s + k[0] * kv * (1.0 - c),
+        v[1] * c + kxv[1] * s + k[1] * kv * (1.0 - c),
+        v[2] * c + kxv[2] * s + k[2] * kv * (1.0 - c),
+    ]
+}
+
+#[test]
+fn parallel_rectangle_through_a_corner() {
+    for (a, b, c) in [
+        (1.0, 1.0, 1.0),
+        (2.0, 0.5, 1.0),
+        (0.1, 3.0, 2.0),
+        (10.0, 10.0, 0.1),
+        (0.01, 0.02, 5.0),
+        (100.0, 0.3, 7.0),
+    ] {
+        let got = point_to_polygon([0.0; 3], UP, &parallel_rectangle(a, b, c));
+        let want = parallel_corner(a, b, c);
+        assert!(rel_err(got, want) < 1e-9, "{a} {b} {c}: {got} vs {want}");
+    }
+}
+
+#[test]
+fn coaxial_disk_as_a_720_gon() {
+    const N: usize = 720;
+    // Circumradius of the regular N-gon with the disk's area, so the polygon's own area error
+    // (1.3e-5 for the inscribed one) does not swamp the comparison.
+    let equal_area = (TAU / (N as f64 * (TAU / N as f64).sin())).sqrt();
+    for (radius, h) in [(1.0, 1.0), (0.5, 2.0), (3.0, 0.2), (1.0, 10.0), (2.0, 0.01)] {
+        let polygon: Vec<[f64; 3]> = (0..N)
+            .map(|k| {
+                let a = TAU * k as f64 / N as f64;
+                let r = radius * equal_area;
+                [r * a.cos(), r * a.sin(), h]
+            })
+            .collect();
+        let got = point_to_polygon([0.0; 3], UP, &polygon);
+        let want = radius * radius / (radius * radius + h * h);
+        assert!(
+            rel_err(got, want) < 1e-5,
+            "R {radius} h {h}: {got} vs {want}"
+        );
+    }
+}
+
+#[test]
+fn perpendicular_rectangle_sharing_an_edge() {
+    for (a, b, c) in [
+        (1.0, 1.0, 1.0),
+        (2.0, 0.5, 1.0),
+        (0.1, 3.0, 2.0),
+        (10.0, 10.0, 0.1),
+        (0.5, 0.01, 3.0),
+        (3.0, 40.0, 0.7),
+    ] {
+        let got = point_to_polygon([0.0; 3], UP, &perpendicular_rectangle(a, b, c));
+        let want = perpendicular(a, b, c);
+        assert!(rel_err(got, want) < 1e-9, "{a} {b} {c}: {got} vs {want}");
+    }
+}
+
+/// A generic configuration: a tilted quad seen from an off-origin point with a tilted normal.
+fn generic() -> ([f64; 3], [f64; 3], Vec<[f64; 3]>) {
+    let p = [0.3, -0.2, 0.1];
+    let n = {
+        let v: [f64; 3] = [0.2, 0.1, 1.0];
+        let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        [v[0] / l, v[1] / l, v[2] / l]
+    };
+    let quad = vec![
+        [-0.5, -0.4, 1.2],
+        [0.9, -0.3, 1.5],
+        [1.1, 0.8, 1.0],
+        [-0.2, 0.7, 0.9],
+    ];
+    (p, n, quad)
+}
+
+#[test]
+fn scale_invariance() {
+    let (p, n, quad) = generic();
+    let base = point_to_polygon(p, n, &quad);
+    assert!(base > 0.05, "{base}");
+    for s in [1e-6, 1e-3, 0.1, 7.0, 1e3, 1e6] {
+        let scaled: Vec<[f64; 3]> = quad.iter().map(|v| v.map(|c| c * s)).collect();
+        let got = point_to_polygon(p.map(|c| c * s), n, &scaled);
+        assert!(rel_err(got, base) < 1e-9, "scale {s}: {got} vs {base}");
+    }
+}
+
+#[test]
+fn rotation_invariance() {
+    let (p, n, quad) = generic();
+    let base = point_to_polygon(p, n, &quad);
+    let mut rng = Rng(7);
+    for _ in 0..20 {
+        let axis = rng.direction();
+        let angle = TAU * rng.next();
+        let r = |v: [f64; 3]| rotate(v, axis, angle);
+        let turned: Vec<[f64; 3]> = quad.iter().map(|&v| r(v)).collect();
+        let got = point_to_polygon(r(p), r(n), &turned);
+        assert!(
+            rel_err(got, base) < 1e-9,
+            "{axis:?} {angle}: {got} vs {base}"
+        );
+    }
+}
+
+#[test]
+fn polygon_partly_below_the_horizon() {
+    // A square in the plane y = 1 spanning z from -1 to 1: only its upper half is visible, and
+    // by symmetry that half is two perpendicular rectangles of the closed form (a = b = c = 1).
+    let square = [
+        [-1.0, 1.0, -1.0],
+        [1.0, 1.0, -1.0],
+        [1.0, 1.0, 1.0],
+        [-1.0, 1.0, 1.0],
+    ];
+    let by_hand = [
+        [-1.0, 1.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [1.0, 1.0, 1.0],
+        [-1.0, 1.0, 1.0],
+    ];
+    let got = point_to_polygon([0.0; 3], UP, &square);
+    let clipped = point_to_polygon([0.0; 3], UP, &by_hand);
+    assert!(rel_err(got, clipped) < 1e-12, "{got} vs {clipped}");
+    let want = 2.0 * perpendicular(1.0, 1.0, 1.0);
+    assert!(rel_err(got, want) < 1e-9, "{got} vs {want}");
+
+    // A tilted triangle with one vertex below: clipped by hand at the two crossings.
+    let tri = [[0.0, 1.0, -1.0], [1.0, 1.0, 1.0], [-1.0, 2.0, 1.0]];
+    // Edge 0-1 crosses z = 0 at its middle (0.5, 1, 0); edge 2-0 also at its middle
+    // (-0.5, 1.5, 0).
+    let tri_by_hand = [
+        [0.5, 1.0, 0.0],
+        [1.0, 1.0, 1.0],
+        [-1.0, 2.0, 1.0],
+        [-0.5, 1.5, 0.0],
+    ];
+    let got = point_to_polygon([0.0; 3], UP, &tri);
+    let want = point_to_polygon([0.0; 3], UP, &tri_by_hand);
+    assert!(rel_err(got, want) < 1e-12, "{got} vs {want}");
+    // Without clipping, the contour sum of the whole triangle differs: make sure the clip matters.
+    let unclipped = point_to_polygon([0.0; 3], [0.0, 1.0, 0.0], &tri);
+    assert!(unclipped > 0.0);
+}
+
+#[test]
+fn polygon_wholly_below_is_zero() {
+    let below = parallel_rectangle(1.0, 2.0, -1.0);
+    assert_eq!(point_to_polygon([0.0; 3], UP, &below), 0.0);
+    // Touching the horizon with one edge and otherwise below: still nothing visible.
+    let touching = [
+        [0.0, 1.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [1.0, 1.0, -1.0],
+        [0.0, 1.0, -1.0],
+    ];
+    assert_eq!(point_to_polygon([0.0; 3], UP, &touching), 0.0);
+}
+
+#[test]
+fn sliver_of_width_1e_minus_9() {
+    for (w, b, c) in [(1e-9, 1.0, 1.0), (1e-9, 0.2, 3.0), (1e-12, 1.0, 1.0)] {
+        let got = point_to_polygon([0.0; 3], UP, &parallel_rectangle(w, b, c));
+        let want = parallel_corner(w, b, c);
+        assert!(got.is_finite());
+        assert!(rel_err(got, want) < 1e-5, "{w} {b} {c}: {got} vs {want}");
+        // The same sliver as a triangle along the other axis.
+        let tri = [[0.0, 0.0, c], [b, 0.0, c], [b, w, c]];
+        let got = point_to_polygon([0.0; 3], UP, &tri);
+        assert!(got.is_finite() && got > 0.0 && got < want * 1.001, "{got}");
+    }
+}
+
+#[test]
+fn never_nan_for_finite_input() {
+    // Points on vertices and edges, polygons through p, huge and tiny coordinates.
+    let sq = [
+        [0.0, 0.0, 1.0],
+        [1.0, 0.0, 1.0],
+        [1.0, 1.0, 1.0],
+        [0.0, 1.0, 1.0],
+    ];
+    let mut rng = Rng(99);
+    let mut cases: Vec<([f64; 3], [f64; 3])> = vec![
+        ([0.0, 0.0, 1.0], UP),
+        ([0.0, 0.0, 1.0], [0.0, 0.0, -1.0]),
+        ([0.5, 0.0, 1.0], [0.0, 1.0, 0.0]),
+        ([0.5, 0.0, 0.0], [1.0, 0.0, 0.0]),
+        ([1e300, 0.0, 0.0], UP),
+        ([1e-300, 1e-300, 0.0], UP),
+    ];
+    for _ in 0..200 {
+        let p = [
+            3.0 * rng.next() - 1.0,
+            3.0 * rng.next() - 1.0,
+            3.0 * rng.next() - 1.0,
+        ];
+        cases.push((p, rng.direction()));
+    }
+    for (p, n) in cases {
+        let f = point_to_polygon(p, n, &sq);
+        assert!(
+            f.is_finite() && (0.0..=1.0 + 1e-12).contains(&f),
+            "{p:?} {n:?}: {f}"
+        );
+    }
+}
+
+#[test]
+fn form_factors_inside_a_closed_box_sum_to_one() {
+    let faces: Vec<Vec<[f64; 3]>> = empty_box()
+        .surfaces
+        .iter()
+        .map(|s| s.vertices.iter().map(|&(x, y, z)| [x, y, z]).collect())
+        .collect();
+    let axes = [
+        [1.0, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+    ];
+    let mut rng = Rng(2024);
+    for k in 0..50 {
+        let p = [
+            0.01 + 0.98 * rng.next(),
+            0.01 + 0.98 * rng.next(),
+            0.01 + 0.98 * rng.next(),
+        ];
+        // Every fifth point looks along an axis (whole faces behind it, side faces clipped
+        // exactly at their middle); the rest in random directions.
+        let n = if k % 5 == 0 {
+            axes[(k / 5) % 6]
+        } else {
+            rng.direction()
+        };
+        let sum: f64 = faces.iter().map(|f| point_to_polygon(p, n, f)).sum();
+        assert!((sum - 1.0).abs() < 1e-9, "point {k} {p:?} {n:?}: sum {sum}");
+    }
+    // The centre, looking straight at a face: four corner rectangles of the closed form to it,
+    // the rest split evenly among the four sides.
+    let f: Vec<f64> = faces
+        .iter()
+        .map(|f| point_to_polygon([0.5; 3], [0.0, 1.0, 0.0], f))
+        .collect();
+    let ceiling = 4.0 * parallel_corner(0.5, 0.5, 0.5);
+    assert!(rel_err(f[1], ceiling) < 1e-12, "{f:?}");
+    assert_eq!(f[0], 0.0);
+    for side in &f[2..] {
+        assert!(rel_err(*side, (1.0 - ceiling) / 4.0) < 1e-12, "{f:?}");
+    }
+}
+
+#[test]
+fn closed_boxes_at_other_scales_sum_to_one() {
+    let mut rng = Rng(5);
+    for size in [1e-6, 1e-2, 1e3, 1e6] {
+        let faces: Vec<Vec<[f64; 3]>> = closed_box(size, 0.5)
+            .surfaces
+            .iter()
+            .map(|s| s.vertices.iter().map(|&(x, y, z)| [x, y, z]).collect())
+            .collect();
+        for _ in 0..10 {
+            let p = [
+                size * (0.01 + 0.98 * rng.next()),
+                size * (0.01 + 0.98 * rng.next()),
+                size * (0.01 + 0.98 * rng.next()),
+            ];
+            let n = rng.direction();
+            let sum: f64 = faces.iter().map(|f| point_to_polygon(p, n, f)).sum();
+            assert!((sum - 1.0).abs() < 1e-9, "size {size} {p:?}: {sum}");
+        }
+    }
+}
