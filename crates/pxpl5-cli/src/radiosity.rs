@@ -199,12 +199,12 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
         let shots = r.solution.shots.len().max(1);
         let total = r.stats.end.as_secs_f64();
         let ph = phases(&r.stats);
-        let (bottleneck, _) = ph
-            .iter()
-            .filter(|(k, _)| k.as_str() != "done")
-            .fold(("none".to_string(), -1.0), |a, (k, v)| {
+        let (bottleneck, _) = ph.iter().filter(|(k, _)| k.as_str() != "done").fold(
+            ("none".to_string(), -1.0),
+            |a, (k, v)| {
                 if *v > a.1 { (k.clone(), *v) } else { a }
-            });
+            },
+        );
         let (seed, seed_n) = seed_estimate(patches.len(), shots, r.method);
         table += &format!(
             "{}: {} shots, {:.3} ms simulated ({:.3} ms per shot); seed's estimate {:.3} ms as written, {:.3} ms with readback x N\n",

@@ -234,6 +234,11 @@ pub fn hemisphere_polygon(
         if !pl.iter().all(|x| x.is_finite()) {
             return Err(Cull::Coplanar);
         }
+        // An edge in the horizon plane (both ends at w = 0): L is identically 0 and the edge
+        // adds no constraint on a polygon above the horizon (its plane is the horizon).
+        if pl[0].abs() + pl[1].abs() < 1e-12 {
+            continue;
+        }
         let quad =
             |a: f64, b: f64, c: f64| [0.0, 0.0, -c * c, a * a + c * c, 2.0 * a * b, b * b + c * c];
         match rule {
