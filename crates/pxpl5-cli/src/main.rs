@@ -2,8 +2,8 @@
 //!
 //! Subcommands: `run` (a program on a machine, with stats, pictures and traces), `config
 //! check|show` (machine configs), `bench renderer` (the Renderer's simulation speed at each
-//! fidelity level). With no subcommand it runs `run` with its defaults (the polygon program's
-//! built-in scene on the embedded seed machine), which needs no file.
+//! fidelity level). With no subcommand it runs `radiosity` with its defaults (the Cornell box, both
+//! methods, on the embedded seed machine), which needs no file.
 //!
 //! Exit codes: 0 success; 2 a user's mistake (bad config, bad flag, unwritable output), reported
 //! with the file, line or field at fault; 1 anything else. The simulator never panics on user
@@ -22,8 +22,9 @@ use clap::{Parser, Subcommand};
 /// A cycle-level simulator of Pixel-Planes 5 (UNC, 1989): Graphics Processors on a token ring,
 /// and 128 x 128 bit-serial SIMD Renderers with a quadratic expression evaluator.
 ///
-/// With no subcommand, runs `pxpl5 run`: the polygon program's built-in scene on the embedded
-/// seed machine (TR89-002), writing out/polygons/.
+/// With no subcommand, runs `pxpl5 radiosity`: the Cornell box with hemisphere and hemicube form
+/// factors on the embedded seed machine (TR89-002), beside the seed's estimate; writes
+/// out/radiosity/.
 #[derive(Parser)]
 #[command(name = "pxpl5", version, propagate_version = true)]
 struct Cli {
@@ -90,7 +91,7 @@ impl<E: std::fmt::Display> From<E> for UserError {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        None => run::run(&run::RunArgs::defaults()),
+        None => radiosity::radiosity(&radiosity::RadiosityArgs::defaults()),
         Some(Command::Config(ConfigCommand::Check { files })) => config_cmd::check(&files),
         Some(Command::Config(ConfigCommand::Show { file })) => config_cmd::show(file.as_deref()),
         Some(Command::Bench(BenchCommand::Renderer(args))) => bench::renderer(&args),

@@ -112,7 +112,15 @@ enum Plan {
     /// A bilinear grid of `n` x `m` quads (n along edge 0-1).
     Quad { n: usize, m: usize },
     /// Triangles (the surface itself, or a fan from vertex 0), each cut into `k` x `k`.
-    Triangles(Vec<([f64; 3], [f64; 3], [f64; 3], usize)>),
+    Triangles(Vec<SubdividedTriangle>),
+}
+
+/// A triangle `a, b, c` (in the surface's orientation) to be cut into `k` x `k` similar ones.
+struct SubdividedTriangle {
+    a: [f64; 3],
+    b: [f64; 3],
+    c: [f64; 3],
+    k: usize,
 }
 
 /// The plan for one surface and its patch count (as f64: it may be astronomically large).
@@ -135,7 +143,12 @@ fn plan(v: &[[f64; 3]], size: f64) -> (Plan, f64) {
         let longest = norm(sub(b, a)).max(norm(sub(c, b))).max(norm(sub(a, c)));
         let k = pieces(longest, size);
         count += k * k;
-        triangles.push((a, b, c, k as usize));
+        triangles.push(SubdividedTriangle {
+            a,
+            b,
+            c,
+            k: k as usize,
+        });
     }
     (Plan::Triangles(triangles), count)
 }
@@ -157,7 +170,8 @@ pub fn mesh(scene: &RadiosityScene, patch_size: f64) -> Result<Vec<Patch>, MeshE
         let vertices: Vec<[f64; 3]> = surface.vertices.iter().map(|&v| arr(v)).collect();
         let (plan, count) = plan(&vertices, patch_size);
         total += count;
-        if !(total <= MAX_PATCHES as f64) {
+        // `total` may be infinite (a patch size of 1e-300), never NaN: `pieces` is at least 1.
+        if total > MAX_PATCHES as f64 {
             return Err(MeshError::TooManyPatches {
                 surface: i,
                 name: surface.name.clone(),
@@ -208,7 +222,7 @@ fn cut_surface(index: usize, surface: &Surface, v: &[[f64; 3]], plan: Plan, out:
             }
         }
         Plan::Triangles(triangles) => {
-            for (a, b, c, k) in triangles {
+            for SubdividedTriangle { a, b, c, k } in triangles {
                 // Lattice points a + (i/k)(b - a) + (j/k)(c - a), i + j <= k; "upright" cells keep
                 // the orientation of (a, b, c), and so do the "inverted" ones as listed.
                 let (e1, e2) = (sub(b, a), sub(c, a));

@@ -41,7 +41,7 @@ pub fn empty_box() -> RadiosityScene {
 pub fn closed_box(size: f64, reflectance: f64) -> RadiosityScene {
     let s = size;
     // Corner patterns with normals into the box (right-hand rule), as in empty-box.ron.
-    let faces: [(&str, [(f64, f64, f64); 4]); 6] = [
+    let faces = [
         (
             "floor",
             [(s, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, s), (s, 0.0, s)],

@@ -1,0 +1,94 @@
+//! Host-side reference solutions, for tests and for measuring the machine's error: progressive
+//! refinement with exact point-to-patch form factors (radiosity-formulas.md sections 1 and 4),
+//! and a direct solve of (I - rho F) B = E on the same form-factor matrix.
+//!
+//! Both use the matrix the progressive method implies: F_ij from the centre of shooter i to
+//! patch j (exact contour formula, unoccluded: meant for convex closed scenes such as the empty
+//! box), and F_ji = F_ij A_i / A_j by reciprocity, so that the two solutions must agree.
+
+use crate::exact::point_to_polygon;
+use crate::mesh::Patch;
+
+/// F[i][j]: from the centre of patch i to patch j (0 on the diagonal).
+pub fn exact_matrix(patches: &[Patch]) -> Vec<Vec<f64>> {
+    patches
+        .iter()
+        .enumerate()
+        .map(|(i, pi)| {
+            patches
+                .iter()
+                .enumerate()
+                .map(|(j, pj)| {
+                    if i == j {
+                        0.0
+                    } else {
+                        point_to_polygon(pi.centre, pi.normal, &pj.vertices)
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Progressive refinement with the matrix `f` until the largest unshot power is below
+/// `threshold` of the emitted power (or `max_shots`); radiosity per patch and band.
+pub fn progressive(
+    patches: &[Patch],
+    f: &[Vec<f64>],
+    threshold: f64,
+    max_shots: usize,
+) -> Vec<[f64; 3]> {
+    let mut b: Vec<[f64; 3]> = patches.iter().map(|p| p.emission).collect();
+    let mut db = b.clone();
+    let power = |p: &Patch, u: [f64; 3]| (u[0] + u[1] + u[2]) * p.area;
+    let emitted: f64 = patches.iter().map(|p| power(p, p.emission)).sum();
+    for _ in 0..max_shots {
+        let (best, i) = patches
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (power(p, db[i]), i))
+            .fold((-1.0, 0), |a, x| if x.0 > a.0 { x } else { a });
+        if emitted <= 0.0 || best / emitted < threshold {
+            break;
+        }
+        let shot = db[i];
+        for (j, pj) in patches.iter().enumerate() {
+            if j == i {
+                continue;
+            }
+            let fji = (f[i][j] * patches[i].area / pj.area).min(1.0);
+            for k in 0..3 {
+                let d = pj.reflectance[k] * shot[k] * fji;
+                b[j][k] += d;
+                db[j][k] += d;
+            }
+        }
+        db[i] = [0.0; 3];
+    }
+    b
+}
+
+/// The solution of (I - rho F^T') B = E with F_ji = F_ij A_i / A_j, by Gauss-Seidel iteration
+/// to a relative change below 1e-13.
+pub fn direct(patches: &[Patch], f: &[Vec<f64>]) -> Vec<[f64; 3]> {
+    let n = patches.len();
+    let mut b: Vec<[f64; 3]> = patches.iter().map(|p| p.emission).collect();
+    for _ in 0..10_000 {
+        let mut change: f64 = 0.0;
+        for j in 0..n {
+            for k in 0..3 {
+                let gathered: f64 = (0..n)
+                    .filter(|&i| i != j)
+                    .map(|i| (f[i][j] * patches[i].area / patches[j].area).min(1.0) * b[i][k])
+                    .sum();
+                let new = patches[j].emission[k] + patches[j].reflectance[k] * gathered;
+                change = change.max((new - b[j][k]).abs() / new.abs().max(1e-300));
+                b[j][k] = new;
+            }
+        }
+        if change < 1e-13 {
+            break;
+        }
+    }
+    b
+}

@@ -1,0 +1,268 @@
+//! Form factors measured on the simulated machine against the exact contour formula, row sums in
+//! a closed box, the two hemisphere edge rules against each other, and the progressive solver
+//! against a direct solve.
+
+use std::cell::RefCell;
+use std::rc::Rc;
+
+use pxpl5_machine::{Machine, Recorder, RunOptions};
+use pxpl5_radiosity::exact::point_to_polygon;
+use pxpl5_radiosity::mesh::mesh;
+use pxpl5_radiosity::program::{FormFactorProgram, FormFactorResult, RadiosityProgram};
+use pxpl5_radiosity::shot::{FfOptions, Method};
+use pxpl5_radiosity::views::{EdgeRule, V3, normalise};
+use pxpl5_radiosity::{scenes, solver};
+
+fn machine_ff(point: V3, normal: V3, polygons: Vec<Vec<V3>>, options: FfOptions) -> Vec<f64> {
+    let cfg = pxpl5_config::default_config();
+    let result = Rc::new(RefCell::new(FormFactorResult::default()));
+    let program = FormFactorProgram {
+        point,
+        normal,
+        polygons,
+        options,
+        result: result.clone(),
+    };
+    Machine::new(&cfg, &program, RunOptions::default(), Recorder::default())
+        .expect("builds")
+        .run()
+        .expect("runs");
+    let r = result.borrow().form_factors.clone();
+    r
+}
+
+fn options(method: Method, resolution: u32) -> FfOptions {
+    FfOptions {
+        method,
+        resolution,
+        ..FfOptions::default()
+    }
+}
+
+/// A deterministic generator for test geometry.
+struct Lcg(u64);
+impl Lcg {
+    fn f(&mut self, lo: f64, hi: f64) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        lo + (hi - lo) * ((self.0 >> 11) as f64 / (1u64 << 53) as f64)
+    }
+}
+
+/// A square of half-size `h` centred at `c`, facing the origin.
+fn square(c: V3, h: f64, tilt: V3) -> Vec<V3> {
+    let n = normalise([-c[0] + tilt[0], -c[1] + tilt[1], -c[2] + tilt[2]]);
+    let helper = if n[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let t1 = normalise(pxpl5_radiosity::views::cross(n, helper));
+    let t2 = pxpl5_radiosity::views::cross(n, t1);
+    [(1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0)]
+        .iter()
+        .map(|(a, b)| {
+            [
+                c[0] + h * (a * t1[0] + b * t2[0]),
+                c[1] + h * (a * t1[1] + b * t2[1]),
+                c[2] + h * (a * t1[2] + b * t2[2]),
+            ]
+        })
+        .collect()
+}
+
+#[test]
+fn large_polygons_are_within_a_few_tenths_of_a_percent_at_128() {
+    let mut rng = Lcg(3);
+    for _ in 0..4 {
+        let c = [rng.f(-0.3, 0.3), rng.f(-0.3, 0.3), rng.f(0.8, 1.2)];
+        let poly = square(
+            c,
+            rng.f(0.7, 1.0),
+            [rng.f(-0.2, 0.2), rng.f(-0.2, 0.2), 0.0],
+        );
+        let exact = point_to_polygon([0.0; 3], [0.0, 0.0, 1.0], &poly);
+        assert!(exact > 0.2, "test polygon too small: {exact}");
+        for (method, tol) in [(Method::Hemisphere, 0.006), (Method::Hemicube, 0.006)] {
+            let f = machine_ff(
+                [0.0; 3],
+                [0.0, 0.0, 1.0],
+                vec![poly.clone()],
+                options(method, 128),
+            )[0];
+            let err = (f - exact) / exact;
+            assert!(
+                err.abs() < tol,
+                "{method:?}: {f} vs exact {exact}: {:.3}%",
+                err * 100.0
+            );
+        }
+    }
+}
+
+#[test]
+fn small_polygons_within_a_tolerance_that_scales_with_projected_size() {
+    let mut rng = Lcg(9);
+    for _ in 0..12 {
+        let dir = normalise([rng.f(-1.0, 1.0), rng.f(-1.0, 1.0), rng.f(0.25, 1.0)]);
+        let d = rng.f(1.0, 3.0);
+        let poly = square(
+            [dir[0] * d, dir[1] * d, dir[2] * d],
+            rng.f(0.03, 0.2),
+            [0.0; 3],
+        );
+        let exact = point_to_polygon([0.0; 3], [0.0, 0.0, 1.0], &poly);
+        for method in [Method::Hemisphere, Method::Hemicube] {
+            let n = 128.0;
+            let f = machine_ff(
+                [0.0; 3],
+                [0.0, 0.0, 1.0],
+                vec![poly.clone()],
+                options(method, 128),
+            )[0];
+            // Boundary pixels: about the perimeter of the projected area in pixels, each wrong
+            // by up to half a pixel's delta form factor (about 4 / (pi n^2) at the disk's centre).
+            let pixels = exact * std::f64::consts::PI * n * n / 4.0;
+            let tol = 4.0 * pixels.sqrt() * 2.0 / (std::f64::consts::PI * n * n) + 0.006 * exact;
+            assert!(
+                (f - exact).abs() <= tol,
+                "{method:?}: {f} vs {exact} (tolerance {tol})"
+            );
+        }
+    }
+}
+
+#[test]
+fn form_factors_inside_a_closed_box_sum_to_one() {
+    // From points on the floor of a unit box, to the other five faces.
+    let faces: Vec<Vec<V3>> = vec![
+        vec![
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 1.0],
+            [1.0, 1.0, 1.0],
+            [0.0, 1.0, 1.0],
+        ],
+        vec![
+            [0.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0],
+            [0.0, 1.0, 1.0],
+            [0.0, 1.0, 0.0],
+        ],
+        vec![
+            [1.0, 0.0, 0.0],
+            [1.0, 1.0, 0.0],
+            [1.0, 1.0, 1.0],
+            [1.0, 0.0, 1.0],
+        ],
+        vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.0, 0.0, 1.0],
+            [0.0, 0.0, 1.0],
+        ],
+        vec![
+            [0.0, 1.0, 0.0],
+            [0.0, 1.0, 1.0],
+            [1.0, 1.0, 1.0],
+            [1.0, 1.0, 0.0],
+        ],
+    ];
+    for p in [[0.5, 0.5, 0.0], [0.2, 0.7, 0.0], [0.05, 0.05, 0.0]] {
+        let exact: f64 = faces
+            .iter()
+            .map(|f| point_to_polygon(p, [0.0, 0.0, 1.0], f))
+            .sum();
+        assert!((exact - 1.0).abs() < 1e-9);
+        for method in [Method::Hemisphere, Method::Hemicube] {
+            let ff = machine_ff(p, [0.0, 0.0, 1.0], faces.clone(), options(method, 128));
+            let sum: f64 = ff.iter().sum();
+            assert!(
+                (sum - 1.0).abs() < 0.005,
+                "{method:?} from {p:?}: sum {sum} ({ff:?})"
+            );
+        }
+    }
+}
+
+#[test]
+fn the_seed_edge_rule_gives_the_sign_of_c_rule_s_form_factors() {
+    let mut rng = Lcg(17);
+    for _ in 0..8 {
+        let dir = normalise([rng.f(-1.0, 1.0), rng.f(-1.0, 1.0), rng.f(0.05, 1.0)]);
+        // Some polygons straddle the horizon.
+        let poly = square(
+            [dir[0] * 1.5, dir[1] * 1.5, dir[2] * 1.5],
+            rng.f(0.1, 0.8),
+            [0.0; 3],
+        );
+        let a = machine_ff(
+            [0.0; 3],
+            [0.0, 0.0, 1.0],
+            vec![poly.clone()],
+            options(Method::Hemisphere, 128),
+        );
+        let mut o = options(Method::Hemisphere, 128);
+        o.edge_rule = EdgeRule::Seed;
+        let b = machine_ff([0.0; 3], [0.0, 0.0, 1.0], vec![poly], o);
+        // The rules differ only where L or Q is exactly 0 at a pixel centre: at most a pixel.
+        let pixel = 4.0 / (std::f64::consts::PI * 128.0 * 128.0);
+        assert!(
+            (a[0] - b[0]).abs() <= pixel,
+            "sign-of-C {} vs seed {}",
+            a[0],
+            b[0]
+        );
+    }
+}
+
+#[test]
+fn exact_progressive_solution_matches_the_direct_solve_and_the_machine_approaches_it() {
+    let scene = scenes::empty_box();
+    let patches = mesh(&scene, 0.5).expect("meshes");
+    let f = solver::exact_matrix(&patches);
+    let direct = solver::direct(&patches, &f);
+    let progressive = solver::progressive(&patches, &f, 1e-12, 100_000);
+    for (a, b) in direct.iter().zip(&progressive) {
+        for k in 0..3 {
+            assert!(
+                (a[k] - b[k]).abs() <= 1e-9 * a[k].abs().max(1.0),
+                "{a:?} vs {b:?}"
+            );
+        }
+    }
+    // The machine's solution, 40 shots, at two resolutions: closer at the higher one.
+    let mut errors = Vec::new();
+    for resolution in [32, 128] {
+        let program = RadiosityProgram::new(
+            patches.clone(),
+            options(Method::Hemisphere, resolution),
+            40,
+            0.0,
+        );
+        let cfg = pxpl5_config::default_config();
+        Machine::new(&cfg, &program, RunOptions::default(), Recorder::default())
+            .expect("builds")
+            .run()
+            .expect("runs");
+        let reference = solver::progressive(&patches, &f, 0.0, 40);
+        let s = program.solution.borrow();
+        let err = s
+            .radiosity
+            .iter()
+            .zip(&reference)
+            .map(|(a, b)| (a[0] - b[0]).abs() / b[0].abs().max(1e-12))
+            .fold(0.0f64, f64::max);
+        errors.push(err);
+    }
+    assert!(
+        errors[1] < errors[0],
+        "error did not fall with resolution: {errors:?}"
+    );
+    assert!(
+        errors[1] < 0.02,
+        "machine solution off by {:.2}% at 128",
+        errors[1] * 100.0
+    );
+}
