@@ -4,7 +4,10 @@
 //!   cycles, and the digest of the board's final state;
 //! - the machine: the polygon program on `programs/polygons/scenes/small.ron` on every shipped
 //!   config; each golden is the run's stats.json (simulated figures only), plus a digest of the
-//!   frame.
+//!   frame;
+//! - radiosity: three shots of the Cornell box (patches of 150 mm) with each form-factor method
+//!   on every shipped config; each golden is the run's stats.json, the shooters, and a digest of
+//!   the solution.
 //!
 //! A golden changes only on purpose, in a commit whose message says why the timing changed
 //! (`INSTA_UPDATE=always cargo test -p pxpl5-tests --test goldens` rewrites them).
@@ -109,4 +112,121 @@ fn polygons_small_pxpl5_1989() {
 #[test]
 fn polygons_small_minimal() {
     insta::assert_snapshot!(polygons_golden("minimal.ron"));
+}
+
+fn radiosity_golden(config_file: &str, method: pxpl5_radiosity::shot::Method) -> String {
+    use pxpl5_machine::{Machine, Recorder, RunOptions};
+    use pxpl5_radiosity::{mesh::mesh, program::RadiosityProgram, scenes, shot::FfOptions};
+    let root = workspace_root();
+    let cfg = pxpl5_config::load_file(&root.join("machine-configs").join(config_file))
+        .expect("shipped configs are valid");
+    let patches = mesh(&scenes::cornell_box(), 150.0).expect("meshes");
+    let options = FfOptions {
+        method,
+        ..FfOptions::default()
+    };
+    let program = RadiosityProgram::new(patches, options, 3, 0.0);
+    let result = Machine::new(&cfg, &program, RunOptions::default(), Recorder::default())
+        .expect("builds")
+        .run()
+        .expect("runs");
+    let s = program.solution.borrow();
+    let digest = s
+        .radiosity
+        .iter()
+        .flat_map(|b| b.iter())
+        .fold(0xcbf29ce484222325u64, |h, x| {
+            (h ^ x.to_bits()).wrapping_mul(0x100000001b3)
+        });
+    format!(
+        "shooters: {:?}\nreciprocity clamps: {}\nculls: {:?}\nsolution fnv1a64: {digest:016x}\n{}",
+        s.shots.iter().map(|(i, t)| (*i, t.0)).collect::<Vec<_>>(),
+        s.reciprocity_clamps,
+        s.culls,
+        serde_json::to_string_pretty(&result.stats.to_json()).expect("json")
+    )
+}
+
+#[test]
+fn radiosity_cornell_hemisphere_seed_tr89_002() {
+    insta::assert_snapshot!(radiosity_golden(
+        "seed-tr89-002.ron",
+        pxpl5_radiosity::shot::Method::Hemisphere
+    ));
+}
+
+#[test]
+fn radiosity_cornell_hemicube_seed_tr89_002() {
+    insta::assert_snapshot!(radiosity_golden(
+        "seed-tr89-002.ron",
+        pxpl5_radiosity::shot::Method::Hemicube
+    ));
+}
+
+#[test]
+fn radiosity_cornell_hemisphere_pxpl5_1989() {
+    insta::assert_snapshot!(radiosity_golden(
+        "pxpl5-1989.ron",
+        pxpl5_radiosity::shot::Method::Hemisphere
+    ));
+}
+
+#[test]
+fn radiosity_cornell_hemicube_pxpl5_1989() {
+    insta::assert_snapshot!(radiosity_golden(
+        "pxpl5-1989.ron",
+        pxpl5_radiosity::shot::Method::Hemicube
+    ));
+}
+
+#[test]
+fn radiosity_cornell_hemisphere_minimal() {
+    insta::assert_snapshot!(radiosity_golden(
+        "minimal.ron",
+        pxpl5_radiosity::shot::Method::Hemisphere
+    ));
+}
+
+#[test]
+fn radiosity_cornell_hemicube_minimal() {
+    insta::assert_snapshot!(radiosity_golden(
+        "minimal.ron",
+        pxpl5_radiosity::shot::Method::Hemicube
+    ));
+}
+
+/// The same radiosity run twice, and at both fidelity levels: identical stats and solution.
+#[test]
+fn radiosity_is_deterministic_across_runs_and_fidelity_levels() {
+    use pxpl5_machine::{Machine, Recorder, RunOptions};
+    use pxpl5_radiosity::{mesh::mesh, program::RadiosityProgram, scenes, shot::FfOptions};
+    let cfg = pxpl5_config::default_config();
+    let patches = mesh(&scenes::cornell_box(), 200.0).expect("meshes");
+    let run = |fidelity| {
+        let program = RadiosityProgram::new(patches.clone(), FfOptions::default(), 2, 0.0);
+        let options = RunOptions {
+            fidelity,
+            ..RunOptions::default()
+        };
+        let r = Machine::new(
+            &cfg,
+            &program,
+            options,
+            Recorder::new(Some(Default::default()), None),
+        )
+        .expect("builds")
+        .run()
+        .expect("runs");
+        let mut json = r.stats.to_json();
+        json["fidelity"] = serde_json::Value::Null;
+        let mut trace = Vec::new();
+        r.recorder.write_chrome(&mut trace).expect("writes");
+        let b = program.solution.borrow().radiosity.clone();
+        (json.to_string(), trace, b)
+    };
+    let a = run(pxpl5_renderer::Fidelity::Word);
+    let b = run(pxpl5_renderer::Fidelity::Word);
+    let c = run(pxpl5_renderer::Fidelity::Bit);
+    assert!(a == b, "two identical runs differ");
+    assert!(a.0 == c.0 && a.2 == c.2, "bit and word levels differ");
 }

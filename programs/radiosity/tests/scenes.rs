@@ -341,10 +341,9 @@ fn garbage_never_panics() {
                 2 => text.truncate(at),
                 _ => {
                     // Swap a digit for another, the commonest harmless-looking corruption.
-                    if let Some(c) = text.get_mut(at) {
-                        if c.is_ascii_digit() {
-                            *c = char::from(b'0' + rng.below(10) as u8);
-                        }
+                    let digit = char::from(b'0' + rng.below(10) as u8);
+                    if let Some(c) = text.get_mut(at).filter(|c| c.is_ascii_digit()) {
+                        *c = digit;
                     }
                 }
             }
