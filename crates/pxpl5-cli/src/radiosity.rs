@@ -328,12 +328,14 @@ fn render(
             (v[2] * 1e3).round() as i64,
         )
     };
-    let mut sums: BTreeMap<(usize, i64, i64, i64), ([f64; 3], f64)> = BTreeMap::new();
+    // (surface, vertex position in thousandths) -> (summed radiosity, patch count).
+    type VertexSums = BTreeMap<(usize, i64, i64, i64), ([f64; 3], f64)>;
+    let mut sums = VertexSums::new();
     for (p, d) in patches.iter().zip(&display) {
         for v in &p.vertices {
             let e = sums.entry(key(p.surface, *v)).or_insert(([0.0; 3], 0.0));
-            for k in 0..3 {
-                e.0[k] += d[k];
+            for (sum, x) in e.0.iter_mut().zip(d) {
+                *sum += x;
             }
             e.1 += 1.0;
         }

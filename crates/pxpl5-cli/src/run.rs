@@ -56,15 +56,6 @@ pub struct RunArgs {
     pub max_time: String,
 }
 
-impl RunArgs {
-    /// Every option at its default, as `pxpl5 run` with no flags.
-    pub fn defaults() -> RunArgs {
-        use clap::{Args as _, FromArgMatches as _};
-        let cmd = RunArgs::augment_args(clap::Command::new("run"));
-        RunArgs::from_arg_matches(&cmd.get_matches_from(["run"])).expect("the defaults parse")
-    }
-}
-
 pub fn run(args: &RunArgs) -> Result<(), UserError> {
     let cfg = config_cmd::load(args.config.as_deref())?;
     let scene = match (&args.scene, args.triangles) {

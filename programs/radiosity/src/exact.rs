@@ -38,14 +38,34 @@ pub fn point_to_polygon(p: [f64; 3], n: [f64; 3], polygon: &[[f64; 3]]) -> f64 {
     if !all_finite {
         return f64::NAN;
     }
-    let n_len = norm(n);
-    if polygon.len() < 3 || n_len == 0.0 {
+    if polygon.len() < 3 {
         return 0.0;
     }
-    let n = scale(n, 1.0 / n_len);
+    // F is scale invariant: bring the normal and the vertices (relative to p) to a largest
+    // component of 1 (by division, which cannot overflow), so that the squares and cross
+    // products below neither overflow nor underflow for coordinates anywhere in f64's range.
+    let Some(n) = unit_scaled(n) else {
+        return 0.0;
+    };
+    let n = scale(n, 1.0 / norm(n));
     // Work relative to p: the formula only needs r_i, and translating first keeps the digits of a
     // small polygon far from the origin.
-    let r: Vec<[f64; 3]> = polygon.iter().map(|&v| sub(v, p)).collect();
+    let mut r: Vec<[f64; 3]> = polygon.iter().map(|&v| sub(v, p)).collect();
+    let reach = r.iter().flatten().fold(0.0f64, |m, c| m.max(c.abs()));
+    if reach == 0.0 {
+        return 0.0;
+    }
+    if !reach.is_finite() {
+        // v - p overflowed (coordinates near f64::MAX of opposite signs): redo it halved.
+        r = polygon
+            .iter()
+            .map(|&v| sub(scale(v, 0.5), scale(p, 0.5)))
+            .collect();
+    }
+    let reach = r.iter().flatten().fold(0.0f64, |m, c| m.max(c.abs()));
+    for v in &mut r {
+        *v = v.map(|c| c / reach);
+    }
     if in_plane(&r) {
         return 0.0;
     }
@@ -70,6 +90,12 @@ pub fn point_to_polygon(p: [f64; 3], n: [f64; 3], polygon: &[[f64; 3]]) -> f64 {
         sum += gamma * dot(n, c) / c_len;
     }
     sum.abs() / TAU
+}
+
+/// `v` divided by its largest absolute component; `None` for the zero vector.
+fn unit_scaled(v: [f64; 3]) -> Option<[f64; 3]> {
+    let largest = v.iter().fold(0.0f64, |m, c| m.max(c.abs()));
+    (largest > 0.0).then(|| v.map(|c| c / largest))
 }
 
 /// Whether the origin (the point `p`, after translation) lies in the plane of the polygon `r`,

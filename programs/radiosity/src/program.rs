@@ -17,7 +17,7 @@ use pxpl5_machine::{Gp, GpFuture, Op, Payload, Program, ProgramError, Unit};
 use pxpl5_sim::Tick;
 
 use crate::mesh::Patch;
-use crate::shot::{CullCounts, FfOptions, Mailbox, Receiver, shoot};
+use crate::shot::{CullCounts, FfOptions, Mailbox, Receiver, Shooter, shoot};
 use crate::views::V3;
 
 const TAG_PARTIAL: u64 = 10;
@@ -156,7 +156,12 @@ impl Program for FormFactorProgram {
         Box::pin(async move {
             let mut culls = CullCounts::default();
             let mut mail = Mailbox::default();
-            let partial = shoot(&gp, &opts, p, n, scale, &receivers, &mut culls, &mut mail).await?;
+            let shooter = Shooter {
+                point: p,
+                normal: n,
+                scale,
+            };
+            let partial = shoot(&gp, &opts, &shooter, &receivers, &mut culls, &mut mail).await?;
             gp.phase("gather");
             let total = gather_on_gp0(&gp, &mut mail, partial).await;
             let mut r = result.borrow_mut();
@@ -326,17 +331,13 @@ impl Program for RadiosityProgram {
                 let d_b = [pick[1], pick[2], pick[3]];
 
                 // Form factors from the shooter's centre, computed by all GPs together.
-                let partial = shoot(
-                    &gp,
-                    &opts,
-                    shooter_patch.centre,
-                    shooter_patch.normal,
+                let shooter = Shooter {
+                    point: shooter_patch.centre,
+                    normal: shooter_patch.normal,
                     scale,
-                    &receivers,
-                    &mut culls,
-                    &mut mail,
-                )
-                .await?;
+                };
+                let partial =
+                    shoot(&gp, &opts, &shooter, &receivers, &mut culls, &mut mail).await?;
 
                 // Partial sums to the receivers' owners.
                 gp.phase("exchange");
@@ -377,8 +378,8 @@ impl Program for RadiosityProgram {
                             fji = 1.0;
                             s.reciprocity_clamps += 1;
                         }
-                        for band in 0..3 {
-                            let d = patches[j].reflectance[band] * d_b[band] * fji;
+                        for (band, &shot) in d_b.iter().enumerate() {
+                            let d = patches[j].reflectance[band] * shot * fji;
                             s.radiosity[j][band] += d;
                             s.unshot[j][band] += d;
                         }

@@ -235,15 +235,21 @@ impl Mailbox {
     }
 }
 
-/// Compute one shot's form factors from `p` with normal `normal`: every GP runs this with the
-/// receivers it owns; each returns the partial sums of its band of every view. `scale` is the
-/// scene's size (the same on every GP).
+/// Where a shot comes from.
+#[derive(Clone, Copy, Debug)]
+pub struct Shooter {
+    pub point: V3,
+    pub normal: V3,
+    /// The scene's size: frame units per scene unit are 1/scale (the same on every GP).
+    pub scale: f64,
+}
+
+/// Compute one shot's form factors from `shooter`: every GP runs this with the receivers it
+/// owns; each returns the partial sums of its band of every view.
 pub async fn shoot(
     gp: &Gp,
     opts: &FfOptions,
-    p: V3,
-    normal: V3,
-    scale: f64,
+    shooter: &Shooter,
     receivers: &[Receiver],
     culls: &mut CullCounts,
     mail: &mut Mailbox,
@@ -257,7 +263,7 @@ pub async fn shoot(
         ViewFields::allocate(rc.pixel_memory_bits).map_err(|e| ProgramError(e.to_string()))?;
     let all_views = views(opts, gp.renderer_count(), side)?;
     let (g, gps) = (gp.index(), gp.gp_count());
-    let frame = Frame::new(p, normal, scale);
+    let frame = Frame::new(shooter.point, shooter.normal, shooter.scale);
     let mut partial = Partial::new();
 
     // The receivers in the shooter's frame (one transform per vertex per shot).

@@ -76,12 +76,16 @@ pub fn direct(patches: &[Patch], f: &[Vec<f64>]) -> Vec<[f64; 3]> {
     for _ in 0..10_000 {
         let mut change: f64 = 0.0;
         for j in 0..n {
-            for k in 0..3 {
-                let gathered: f64 = (0..n)
-                    .filter(|&i| i != j)
-                    .map(|i| (f[i][j] * patches[i].area / patches[j].area).min(1.0) * b[i][k])
-                    .sum();
-                let new = patches[j].emission[k] + patches[j].reflectance[k] * gathered;
+            let mut gathered = [0.0; 3];
+            for (i, bi) in b.iter().enumerate().filter(|(i, _)| *i != j) {
+                let fji = (f[i][j] * patches[i].area / patches[j].area).min(1.0);
+                for (g, x) in gathered.iter_mut().zip(bi) {
+                    *g += fji * x;
+                }
+            }
+            let p = &patches[j];
+            for (k, g) in gathered.iter().enumerate() {
+                let new = p.emission[k] + p.reflectance[k] * g;
                 change = change.max((new - b[j][k]).abs() / new.abs().max(1e-300));
                 b[j][k] = new;
             }

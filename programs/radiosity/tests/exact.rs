@@ -169,7 +169,9 @@ fn scale_invariance() {
     let (p, n, quad) = generic();
     let base = point_to_polygon(p, n, &quad);
     assert!(base > 0.05, "{base}");
-    for s in [1e-6, 1e-3, 0.1, 7.0, 1e3, 1e6] {
+    // 1e-6 to 1e6 as asked, and beyond: the vertices are rescaled inside, so even 1e+-200 (whose
+    // cross products would overflow or underflow) keeps every digit.
+    for s in [1e-200, 1e-6, 1e-3, 0.1, 7.0, 1e3, 1e6, 1e200] {
         let scaled: Vec<[f64; 3]> = quad.iter().map(|v| v.map(|c| c * s)).collect();
         let got = point_to_polygon(p.map(|c| c * s), n, &scaled);
         assert!(rel_err(got, base) < 1e-9, "scale {s}: {got} vs {base}");
@@ -303,6 +305,9 @@ fn never_nan_for_finite_input() {
         ([0.5, 0.0, 0.0], [1.0, 0.0, 0.0]),
         ([1e300, 0.0, 0.0], UP),
         ([1e-300, 1e-300, 0.0], UP),
+        ([0.2, 0.3, 0.0], [1e-300, 0.0, 1e-310]),
+        ([0.2, 0.3, 0.0], [1e300, 1e300, 1e300]),
+        ([0.2, 0.3, 0.0], [0.0, 0.0, f64::MAX]),
     ];
     for _ in 0..200 {
         let p = [
@@ -319,6 +324,37 @@ fn never_nan_for_finite_input() {
             "{p:?} {n:?}: {f}"
         );
     }
+    // Extreme coordinates: overflowing differences, subnormal polygons.
+    let big = f64::MAX;
+    let polygons = [
+        vec![
+            [-big, -big, big],
+            [big, -big, big],
+            [big, big, big],
+            [-big, big, big],
+        ],
+        vec![
+            [0.0, 0.0, 1e-310],
+            [1e-310, 0.0, 1e-310],
+            [0.0, 1e-310, 1e-310],
+        ],
+        vec![[0.0, 0.0, 1e200], [1e200, 0.0, 1e200], [0.0, 1e200, 1e200]],
+    ];
+    for polygon in &polygons {
+        for p in [[0.0; 3], [-big, 0.0, -big], [1e-320, 0.0, 0.0]] {
+            let f = point_to_polygon(p, UP, polygon);
+            assert!(
+                f.is_finite() && (0.0..=1.0 + 1e-12).contains(&f),
+                "{p:?} {polygon:?}: {f}"
+            );
+        }
+    }
+    // Seen from the origin, the huge square overhead fills most of the hemisphere.
+    let f = point_to_polygon([0.0; 3], UP, &polygons[0]);
+    assert!(
+        (f - 4.0 * parallel_corner(1.0, 1.0, 1.0)).abs() < 1e-9,
+        "{f}"
+    );
 }
 
 #[test]

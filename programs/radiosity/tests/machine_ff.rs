@@ -27,8 +27,7 @@ fn machine_ff(point: V3, normal: V3, polygons: Vec<Vec<V3>>, options: FfOptions)
         .expect("builds")
         .run()
         .expect("runs");
-    let r = result.borrow().form_factors.clone();
-    r
+    result.take().form_factors
 }
 
 fn options(method: Method, resolution: u32) -> FfOptions {
