@@ -63,6 +63,29 @@ pub struct RadiosityArgs {
     /// Renderer fidelity level.
     #[arg(long, default_value = "word", value_parser = ["bit", "word"])]
     pub fidelity: String,
+    /// Write a Chrome trace of simulated time per method to FILE (with both methods, the method's
+    /// name is inserted before the extension: t.hemisphere.json, t.hemicube.json).
+    #[arg(long)]
+    pub trace: Option<PathBuf>,
+    /// Write a VCD per method to FILE (named as for --trace).
+    #[arg(long)]
+    pub vcd: Option<PathBuf>,
+    /// Limit --trace and --vcd to a window of simulated time, e.g. 0..2ms.
+    #[arg(long, value_name = "START..END")]
+    pub trace_window: Option<String>,
+}
+
+/// `path` with the method's name before its extension, when more than one method runs.
+fn per_method(path: &std::path::Path, method: Method, several: bool) -> PathBuf {
+    if !several {
+        return path.to_path_buf();
+    }
+    let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("trace");
+    let name = match path.extension().and_then(|e| e.to_str()) {
+        Some(ext) => format!("{stem}.{}.{ext}", method.name()),
+        None => format!("{stem}.{}", method.name()),
+    };
+    path.with_file_name(name)
 }
 
 impl RadiosityArgs {
@@ -102,6 +125,7 @@ fn run_method(
     args: &RadiosityArgs,
     method: Method,
     fidelity: Fidelity,
+    recorder: Recorder,
 ) -> Result<Measured, UserError> {
     let program = RadiosityProgram::new(
         patches.to_vec(),
@@ -114,16 +138,34 @@ fn run_method(
         max_time: pxpl5_sim::Tick(1_000_000_000_000_000),
     };
     let t0 = Instant::now();
-    let result = Machine::new(cfg, &program, options, Recorder::default())
+    let result = Machine::new(cfg, &program, options, recorder)
         .map_err(UserError::from)?
         .run()
         .map_err(UserError::from)?;
     let solution = program.solution.borrow().clone();
+    let host_seconds = t0.elapsed().as_secs_f64();
+    let several = args.method == "both";
+    if let Some(path) = &args.trace {
+        let mut bytes = Vec::new();
+        result
+            .recorder
+            .write_chrome(&mut bytes)
+            .map_err(UserError::from)?;
+        write_atomic(&per_method(path, method, several), &bytes)?;
+    }
+    if let Some(path) = &args.vcd {
+        let mut bytes = Vec::new();
+        result
+            .recorder
+            .write_vcd(&mut bytes)
+            .map_err(UserError::from)?;
+        write_atomic(&per_method(path, method, several), &bytes)?;
+    }
     Ok(Measured {
         method,
         stats: result.stats,
         solution,
-        host_seconds: t0.elapsed().as_secs_f64(),
+        host_seconds,
     })
 }
 
@@ -169,6 +211,18 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
         "hemicube" => vec![Method::Hemicube],
         _ => vec![Method::Hemisphere, Method::Hemicube],
     };
+    let window = match &args.trace_window {
+        Some(w) => pxpl5_trace::TraceWindow::parse(w)
+            .map_err(|e| UserError(format!("--trace-window: {e}")))?,
+        None => pxpl5_trace::TraceWindow::all(),
+    };
+    for f in [&args.trace, &args.vcd].into_iter().flatten() {
+        let dir = f
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(std::path::Path::new("."));
+        probe_writable(dir)?;
+    }
     let mut runs = Vec::new();
     for m in methods {
         eprintln!(
@@ -177,7 +231,11 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
             patches.len(),
             args.shots
         );
-        runs.push(run_method(&cfg, &patches, args, m, fidelity)?);
+        let recorder = Recorder::new(
+            args.trace.as_ref().map(|_| window),
+            args.vcd.as_ref().map(|_| window),
+        );
+        runs.push(run_method(&cfg, &patches, args, m, fidelity, recorder)?);
     }
 
     // The comparison table.

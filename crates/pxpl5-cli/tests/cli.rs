@@ -238,3 +238,88 @@ fn run_rejects_bad_input_without_writing() {
     assert_eq!(out.status.code(), Some(2));
     assert!(text(&out.stderr).contains("--trace-window"));
 }
+
+#[test]
+fn radiosity_compares_both_methods_with_the_seed() {
+    let out_d = out_dir("radiosity");
+    let out = pxpl5(&[
+        "radiosity",
+        "--shots",
+        "2",
+        "--patch-size",
+        "200",
+        "--out",
+        out_d.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    assert!(
+        stdout.contains("measured hemicube / hemisphere time"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("seed's estimate"), "{stdout}");
+    let csv = std::fs::read_to_string(out_d.join("comparison.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 3, "{csv}");
+    assert!(
+        csv.contains("hemisphere,2,") && csv.contains("hemicube,2,"),
+        "{csv}"
+    );
+    let png = std::fs::read(out_d.join("radiosity.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    assert!(
+        std::fs::read_to_string(out_d.join("patches.csv"))
+            .unwrap()
+            .lines()
+            .count()
+            > 20
+    );
+}
+
+#[test]
+fn formfactor_exact_and_on_the_machine() {
+    let square = "-1,-1,1;1,-1,1;1,1,1;-1,1,1";
+    let out = pxpl5(&[
+        "formfactor",
+        "--point",
+        "0,0,0",
+        "--normal",
+        "0,0,1",
+        "--polygon",
+        square,
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    // Four corner rectangles of 1 x 1 at distance 1: 4 x 0.138532... (Howell's catalogue).
+    assert!(
+        text(&out.stdout).contains("0.5541264"),
+        "{}",
+        text(&out.stdout)
+    );
+    let out = pxpl5(&[
+        "formfactor",
+        "--point",
+        "0,0,0",
+        "--normal",
+        "0,0,1",
+        "--polygon",
+        square,
+        "--method",
+        "hemicube",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stdout).contains("Renderer busy"),
+        "{}",
+        text(&out.stdout)
+    );
+    let out = pxpl5(&[
+        "formfactor",
+        "--point",
+        "0,0",
+        "--normal",
+        "0,0,1",
+        "--polygon",
+        square,
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("--point"));
+}
