@@ -73,6 +73,10 @@ pub struct RadiosityArgs {
     /// Limit --trace and --vcd to a window of simulated time, e.g. 0..2ms.
     #[arg(long, value_name = "START..END")]
     pub trace_window: Option<String>,
+    /// Write the item (ID) buffers of these shots (0-based, comma-separated) as PNGs:
+    /// DIR/items-METHOD-shotK-VIEW.png, one colour per patch.
+    #[arg(long, value_delimiter = ',')]
+    pub item_buffers: Vec<usize>,
 }
 
 /// `path` with the method's name before its extension, when more than one method runs.
@@ -127,12 +131,13 @@ fn run_method(
     fidelity: Fidelity,
     recorder: Recorder,
 ) -> Result<Measured, UserError> {
-    let program = RadiosityProgram::new(
+    let mut program = RadiosityProgram::new(
         patches.to_vec(),
         args.ff_options(method),
         args.shots,
         args.threshold,
     );
+    program.item_shots = args.item_buffers.clone();
     let options = RunOptions {
         fidelity,
         max_time: pxpl5_sim::Tick(1_000_000_000_000_000),
@@ -144,6 +149,14 @@ fn run_method(
         .map_err(UserError::from)?;
     let solution = program.solution.borrow().clone();
     let host_seconds = t0.elapsed().as_secs_f64();
+    for (shot, buffers) in program.item_buffers.borrow().iter() {
+        for b in buffers.borrow().iter() {
+            let path = args
+                .out
+                .join(format!("items-{}-shot{shot}-{}.png", method.name(), b.view));
+            write_atomic(&path, &item_png(b)?)?;
+        }
+    }
     let several = args.method == "both";
     if let Some(path) = &args.trace {
         let mut bytes = Vec::new();
@@ -345,6 +358,33 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
         args.out.display()
     );
     Ok(())
+}
+
+/// An item buffer as a picture: one colour per ID (a hash), black where nothing was drawn, the
+/// buffer's row 0 at the bottom.
+fn item_png(b: &pxpl5_radiosity::shot::ItemBuffer) -> Result<Vec<u8>, UserError> {
+    let mut rgb = Vec::with_capacity((b.width * b.rows * 3) as usize);
+    for row in (0..b.rows).rev() {
+        for col in 0..b.width {
+            let id = b.ids[(row * b.width + col) as usize];
+            if id == 0 {
+                rgb.extend([0, 0, 0]);
+            } else {
+                let h = u32::from(id).wrapping_mul(0x9E37_79B9);
+                rgb.extend([
+                    (h >> 24) as u8 | 0x40,
+                    (h >> 16) as u8 | 0x40,
+                    (h >> 8) as u8 | 0x40,
+                ]);
+            }
+        }
+    }
+    png_bytes(&pxpl5_machine::Frame {
+        width: b.width,
+        height: b.rows,
+        rgb,
+        writes: 0,
+    })
 }
 
 /// The solution seen from the scene's camera, drawn by the simulated machine's polygon

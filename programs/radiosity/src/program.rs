@@ -17,7 +17,7 @@ use pxpl5_machine::{Gp, GpFuture, Op, Payload, Program, ProgramError, Unit};
 use pxpl5_sim::Tick;
 
 use crate::mesh::Patch;
-use crate::shot::{CullCounts, FfOptions, Mailbox, Receiver, Shooter, shoot};
+use crate::shot::{CullCounts, FfOptions, ItemBuffers, Mailbox, Receiver, Shooter, shoot};
 use crate::views::V3;
 
 const TAG_PARTIAL: u64 = 10;
@@ -161,7 +161,10 @@ impl Program for FormFactorProgram {
                 normal: n,
                 scale,
             };
-            let partial = shoot(&gp, &opts, &shooter, &receivers, &mut culls, &mut mail).await?;
+            let partial = shoot(
+                &gp, &opts, &shooter, &receivers, &mut culls, &mut mail, None,
+            )
+            .await?;
             gp.phase("gather");
             let total = gather_on_gp0(&gp, &mut mail, partial).await;
             let mut r = result.borrow_mut();
@@ -210,6 +213,10 @@ pub struct RadiosityProgram {
     /// Scene size (the frame scale for every shot).
     pub scale: f64,
     pub solution: Rc<RefCell<Solution>>,
+    /// Shots (0-based) whose item buffers to keep for pictures.
+    pub item_shots: Vec<usize>,
+    /// The kept item buffers: (shot, its views).
+    pub item_buffers: Rc<RefCell<Vec<(usize, ItemBuffers)>>>,
 }
 
 impl RadiosityProgram {
@@ -237,6 +244,8 @@ impl RadiosityProgram {
             threshold,
             scale,
             solution: Rc::new(RefCell::new(solution)),
+            item_shots: Vec::new(),
+            item_buffers: Rc::default(),
         }
     }
 }
@@ -255,6 +264,8 @@ impl Program for RadiosityProgram {
         let solution = self.solution.clone();
         let (opts, shots, threshold, scale) =
             (self.options, self.shots, self.threshold, self.scale);
+        let item_shots = self.item_shots.clone();
+        let item_buffers = self.item_buffers.clone();
         Box::pin(async move {
             let (g, gps) = (gp.index() as usize, gp.gp_count() as usize);
             if patches.len() >= u16::MAX as usize {
@@ -336,8 +347,28 @@ impl Program for RadiosityProgram {
                     normal: shooter_patch.normal,
                     scale,
                 };
-                let partial =
-                    shoot(&gp, &opts, &shooter, &receivers, &mut culls, &mut mail).await?;
+                let shot_index = solution.borrow().shots.len();
+                let items = item_shots.contains(&shot_index).then(|| {
+                    let mut all = item_buffers.borrow_mut();
+                    if !all.iter().any(|(s, _)| *s == shot_index) {
+                        all.push((shot_index, ItemBuffers::default()));
+                    }
+                    all.iter()
+                        .find(|(s, _)| *s == shot_index)
+                        .expect("pushed")
+                        .1
+                        .clone()
+                });
+                let partial = shoot(
+                    &gp,
+                    &opts,
+                    &shooter,
+                    &receivers,
+                    &mut culls,
+                    &mut mail,
+                    items.as_ref(),
+                )
+                .await?;
 
                 // Partial sums to the receivers' owners.
                 gp.phase("exchange");

@@ -244,6 +244,21 @@ pub struct Shooter {
     pub scale: f64,
 }
 
+/// An item buffer (the IDs of one view) as read back, for pictures: collected by the simulator
+/// from every GP's bands, outside simulated time.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ItemBuffer {
+    /// "hemisphere", "hemisphere tile 2", "hemicube top", "hemicube side 1" ...
+    pub view: String,
+    pub width: u32,
+    pub rows: u32,
+    /// Row-major IDs (0: nothing), row 0 at the bottom.
+    pub ids: Vec<u16>,
+}
+
+/// Item buffers of a shot, shared by the GPs that fill them.
+pub type ItemBuffers = std::rc::Rc<std::cell::RefCell<Vec<ItemBuffer>>>;
+
 /// Compute one shot's form factors from `shooter`: every GP runs this with the receivers it
 /// owns; each returns the partial sums of its band of every view.
 pub async fn shoot(
@@ -253,6 +268,7 @@ pub async fn shoot(
     receivers: &[Receiver],
     culls: &mut CullCounts,
     mail: &mut Mailbox,
+    items: Option<&ItemBuffers>,
 ) -> Result<Partial, ProgramError> {
     let rc = gp.renderer_config().clone();
     let side = rc.width.min(rc.height);
@@ -426,6 +442,26 @@ pub async fn shoot(
                 let ids = readback::unpack(&words, bits, word_bits, count);
                 gp.phase("accumulate");
                 gp.compute(Op::FfAccumulatePerPixel, count as u64).await;
+                if let Some(items) = items {
+                    let mut all = items.borrow_mut();
+                    let name = view_name(v, round.len());
+                    let k = match all.iter().position(|b| b.view == name) {
+                        Some(k) => k,
+                        None => {
+                            all.push(ItemBuffer {
+                                view: name,
+                                width: v.width,
+                                rows: v.rows,
+                                ids: vec![0; (v.width * v.rows) as usize],
+                            });
+                            all.len() - 1
+                        }
+                    };
+                    let start = (rect.y * v.width) as usize;
+                    for (i, &id) in ids.iter().enumerate() {
+                        all[k].ids[start + i] = id as u16;
+                    }
+                }
                 for (i, &id) in ids.iter().enumerate() {
                     if id == 0 {
                         continue;
@@ -439,6 +475,20 @@ pub async fn shoot(
         }
     }
     Ok(partial)
+}
+
+/// A view's name in pictures.
+fn view_name(v: &View, _round: usize) -> String {
+    match v.kind {
+        ViewKind::Disk { .. } => format!("hemisphere-{}", v.renderer),
+        ViewKind::Face {
+            face: Face::Top, ..
+        } => "hemicube-top".to_string(),
+        ViewKind::Face {
+            face: Face::Side(k),
+            ..
+        } => format!("hemicube-side{k}"),
+    }
 }
 
 /// A one-pixel readback of the ID field to GP `g`: it executes after every earlier command on
