@@ -123,7 +123,9 @@ pub enum CommandError {
         end: u32,
         blocks: u32,
     },
-    #[error("readback: rectangle {rect:?} is empty or outside the {width} x {height} array")]
+    #[error("write_pixels: {got} values for a rectangle of {want} pixels")]
+    PixelCount { got: usize, want: usize },
+    #[error("rectangle {rect:?} is empty or outside the {width} x {height} array")]
     Rect { rect: Rect, width: u32, height: u32 },
 }
 
@@ -431,6 +433,11 @@ impl Board {
                 self.start_transfer(field, end);
             }
             Command::Fence => {}
+            Command::WritePixels {
+                dst,
+                rect,
+                ref values,
+            } => self.engine.get_mut().write_values(dst, rect, values),
             Command::Readback {
                 field,
                 rect,
@@ -589,21 +596,48 @@ impl Board {
                     });
                 }
             }
-            Command::Readback { rect, .. } => {
-                let (w, h) = (self.cfg.width, self.cfg.height);
-                if rect.width == 0
-                    || rect.height == 0
-                    || u64::from(rect.x) + u64::from(rect.width) > u64::from(w)
-                    || u64::from(rect.y) + u64::from(rect.height) > u64::from(h)
+            Command::WritePixels {
+                dst,
+                rect,
+                ref values,
+            } => {
+                self.check_rect(rect)?;
+                if values.len() != (rect.width * rect.height) as usize {
+                    return Err(CommandError::PixelCount {
+                        got: values.len(),
+                        want: (rect.width * rect.height) as usize,
+                    });
+                }
+                if let Some(&v) = values
+                    .iter()
+                    .find(|&&v| v & !crate::qee::mask(dst.bits) != 0)
                 {
-                    return Err(CommandError::Rect {
-                        rect,
-                        width: w,
-                        height: h,
+                    return Err(CommandError::Constant {
+                        kind,
+                        value: v,
+                        bits: dst.bits,
                     });
                 }
             }
+            Command::Readback { rect, .. } => self.check_rect(rect)?,
             Command::Copy { .. } | Command::Add { .. } | Command::Sub { .. } | Command::Fence => {}
+        }
+        Ok(())
+    }
+
+    /// A rectangle must be non-empty and inside the array.
+    fn check_rect(&self, rect: Rect) -> Result<(), CommandError> {
+        let (w, h) = (self.cfg.width, self.cfg.height);
+        if rect.width == 0
+            || rect.height == 0
+            || u64::from(rect.x) + u64::from(rect.width) > u64::from(w)
+            || u64::from(rect.y) + u64::from(rect.height) > u64::from(h)
+        {
+            return Err(CommandError::Rect {
+                rect,
+                width: w,
+                height: h,
+            });
         }
         Ok(())
     }

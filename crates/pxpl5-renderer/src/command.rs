@@ -221,6 +221,13 @@ pub enum Command {
         dest: u32,
         tag: u32,
     },
+    /// Write ring data into a field of a rectangle of pixels, row by row (the inverse of a
+    /// readback; not gated by enable): e.g. a per-pixel table such as the hemisphere's w.
+    WritePixels {
+        dst: Field,
+        rect: Rect,
+        values: Vec<u64>,
+    },
 }
 
 impl Command {
@@ -243,6 +250,7 @@ impl Command {
             Command::Load { .. } => "load",
             Command::Fence => "fence",
             Command::Readback { .. } => "readback",
+            Command::WritePixels { .. } => "write_pixels",
         }
     }
 
@@ -263,6 +271,10 @@ impl Command {
             }
             Command::WriteConst { dst, .. } => dst.bits.div_ceil(word_bits),
             Command::SetOrigin { .. } | Command::MulConst { .. } | Command::Readback { .. } => 1,
+            // The rectangle, then the values packed as a readback packs them.
+            Command::WritePixels { dst, values, .. } => {
+                1 + crate::readback::words_needed(values.len(), dst.bits, word_bits) as u32
+            }
             Command::Logic { .. }
             | Command::Copy { .. }
             | Command::Add { .. }
@@ -287,6 +299,7 @@ impl Command {
     /// The fields of pixel memory the command reads or writes (for backing-store interlocks).
     pub fn fields(&self) -> Vec<Field> {
         match *self {
+            Command::WritePixels { dst, .. } => vec![dst],
             Command::QeeStore { dst, .. } | Command::QeeAdd { dst, .. } => vec![dst],
             Command::QeeCompare { field, .. } => vec![field],
             Command::WriteConst { dst, .. } => vec![dst],

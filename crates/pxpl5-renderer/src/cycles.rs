@@ -20,6 +20,7 @@
 //! | `Save`, `Load` | `backing_store_issue` in the foreground; [`backing_store_cycles`] in the background |
 //! | `Fence` | nothing more (its wait is a stall, not work) |
 //! | `Readback` | `field.bits * readback_per_bit` (moving the field into the output port; the ring's time is the ring's) |
+//! | `WritePixels` | `dst.bits * readback_per_bit` (the same port, the other way) |
 
 use pxpl5_config::RendererConfig;
 use pxpl5_sim::Cycles;
@@ -55,7 +56,9 @@ pub fn cycle_cost(cmd: &Command, cfg: &RendererConfig) -> Cycles {
         }
         Command::Save { .. } | Command::Load { .. } => t.backing_store_issue,
         Command::Fence => 0,
-        Command::Readback { field, .. } => bits(field) * t.readback_per_bit,
+        Command::Readback { field, .. } | Command::WritePixels { dst: field, .. } => {
+            bits(field) * t.readback_per_bit
+        }
     };
     Cycles(t.igc_overhead + work)
 }

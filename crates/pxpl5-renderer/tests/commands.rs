@@ -415,3 +415,45 @@ fn program_mistakes_are_errors_not_panics() {
     // Nothing ran: time did not move.
     assert_eq!(b.now().0, 0);
 }
+
+#[test]
+fn write_pixels_fills_a_rectangle_ungated() {
+    let f = field(30, 17, false);
+    let rect = Rect {
+        x: 60,
+        y: 5,
+        width: 8,
+        height: 2,
+    };
+    let values: Vec<u64> = (0..16).map(|i| 1000 * i + 7).collect();
+    // Enable covers only x < 64: the write is not gated, so x >= 64 is written too.
+    let b = check(
+        &[left_half()],
+        Command::WritePixels {
+            dst: f,
+            rect,
+            values: values.clone(),
+        },
+        20 + 17,
+    );
+    let all = b.field_values(f);
+    assert_eq!(all[W * 5 + 60], 7);
+    assert_eq!(all[W * 6 + 67], 15007);
+    assert_eq!(all[W * 6 + 68], 0);
+    let cmd = Command::WritePixels {
+        dst: f,
+        rect,
+        values,
+    };
+    // The opcode word, the rectangle's word, and 16 values of 17 bits, one per 32-bit word.
+    assert_eq!(cmd.words(32, 32), 18);
+    let [mut bad, _] = boards(&[]);
+    assert!(matches!(
+        bad.execute(&Command::WritePixels {
+            dst: f,
+            rect,
+            values: vec![1; 3]
+        }),
+        Err(CommandError::PixelCount { got: 3, want: 16 })
+    ));
+}

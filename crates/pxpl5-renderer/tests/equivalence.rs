@@ -132,6 +132,15 @@ fn command() -> impl Strategy<Value = Command> {
         1 => (field(), 0u32..130).prop_map(|(field, block)| Command::Save { field, block }),
         1 => (field(), 0u32..130).prop_map(|(field, block)| Command::Load { field, block }),
         1 => Just(Command::Fence),
+        1 => (field(), 0u32..40, 0u32..10, 1u32..30, 1u32..8, any::<u64>()).prop_map(
+            |(dst, x, y, w, h, seed)| {
+                let m = pxpl5_renderer::qee::mask(dst.bits.min(64));
+                let values = (0..u64::from(w * h))
+                    .map(|i| seed.wrapping_mul(i * 2 + 1).rotate_left(i as u32) & m)
+                    .collect();
+                Command::WritePixels { dst, rect: Rect { x, y, width: w, height: h }, values }
+            }
+        ),
         1 => (field(), 0u32..70, 0u32..20, 1u32..70, 1u32..20).prop_map(|(field, x, y, w, h)| {
             Command::Readback { field, rect: Rect { x, y, width: w, height: h }, dest: 3, tag: 0 }
         }),

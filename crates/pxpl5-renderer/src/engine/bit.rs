@@ -259,6 +259,21 @@ impl PixelEngine for BitEngine {
         self.planes[start..start + field.bits as usize * words].copy_from_slice(planes);
     }
 
+    fn write_values(&mut self, field: Field, rect: Rect, values: &[u64]) {
+        let g = self.geometry;
+        let mut it = values.iter();
+        for py in rect.y as usize..(rect.y + rect.height) as usize {
+            for px in rect.x as usize..(rect.x + rect.width) as usize {
+                let w = py * g.words_per_row + px / 64;
+                let v = *it.next().expect("validated length");
+                for k in 0..field.bits {
+                    let bit = ((v >> k) & 1).wrapping_neg();
+                    self.write(field, k, w, bit, 1 << (px % 64));
+                }
+            }
+        }
+    }
+
     fn read_values(&self, field: Field, rect: Rect) -> Vec<u64> {
         let g = self.geometry;
         let mut out = Vec::with_capacity((rect.width * rect.height) as usize);

@@ -148,6 +148,8 @@ pub trait PixelEngine {
     fn write_planes(&mut self, field: Field, planes: &[u64]);
     /// The field's raw bits for the pixels of `rect`, row by row.
     fn read_values(&self, field: Field, rect: Rect) -> Vec<u64>;
+    /// Overwrite the field's raw bits for the pixels of `rect`, row by row (not gated).
+    fn write_values(&mut self, field: Field, rect: Rect, values: &[u64]);
 }
 
 /// Sign- or zero-extend the raw `bits`-bit value of a field to 64 bits.

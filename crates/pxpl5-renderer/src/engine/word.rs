@@ -373,6 +373,18 @@ impl PixelEngine for WordEngine {
         }
     }
 
+    fn write_values(&mut self, field: Field, rect: Rect, values: &[u64]) {
+        let a = Access::of(field);
+        let g = self.geometry;
+        let mut it = values.iter();
+        for py in rect.y as usize..(rect.y + rect.height) as usize {
+            for px in rect.x as usize..(rect.x + rect.width) as usize {
+                let p = (py * g.words_per_row + px / 64) * 64 + px % 64;
+                self.set(a, p, *it.next().expect("validated length"));
+            }
+        }
+    }
+
     fn read_values(&self, field: Field, rect: Rect) -> Vec<u64> {
         let a = Access::of(field);
         let g = self.geometry;
