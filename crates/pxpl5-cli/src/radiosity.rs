@@ -16,7 +16,7 @@ use pxpl5_machine::{Machine, Recorder, RunOptions, RunStats};
 use pxpl5_radiosity::mesh::{Patch, mesh};
 use pxpl5_radiosity::program::{FormFactorProgram, FormFactorResult, RadiosityProgram, Solution};
 use pxpl5_radiosity::shot::{FfOptions, Method};
-use pxpl5_radiosity::views::EdgeRule;
+use pxpl5_radiosity::views::{EdgeRule, HemisphereDepth};
 use pxpl5_renderer::Fidelity;
 
 use crate::UserError;
@@ -57,6 +57,10 @@ pub struct RadiosityArgs {
     /// Hemicube: transform and clip every receiver for every face (no cheap face test).
     #[arg(long)]
     pub all_faces: bool,
+    /// Hemisphere depth: taylor (the seed's quadratic approximation) or stored-w (w per pixel,
+    /// exact, slower).
+    #[arg(long, default_value = "taylor", value_parser = ["taylor", "stored-w"])]
+    pub depth: String,
     /// Output directory.
     #[arg(long, default_value = "out/radiosity")]
     pub out: PathBuf,
@@ -111,6 +115,11 @@ impl RadiosityArgs {
             },
             exact_delta: self.delta == "exact",
             skip_faces: !self.all_faces,
+            depth: if self.depth == "stored-w" {
+                HemisphereDepth::StoredW
+            } else {
+                HemisphereDepth::Taylor
+            },
         }
     }
 }

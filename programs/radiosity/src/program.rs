@@ -17,7 +17,7 @@ use pxpl5_machine::{Gp, GpFuture, Op, Payload, Program, ProgramError, Unit};
 use pxpl5_sim::Tick;
 
 use crate::mesh::Patch;
-use crate::shot::{CullCounts, FfOptions, ItemBuffers, Mailbox, Receiver, Shooter, shoot};
+use crate::shot::{CullCounts, FfOptions, GpLocal, ItemBuffers, Receiver, Shooter, shoot};
 use crate::views::V3;
 
 const TAG_PARTIAL: u64 = 10;
@@ -50,7 +50,7 @@ async fn send_values(gp: &Gp, to: u32, tag: u64, values: Vec<f64>) {
 
 /// Receive one complete `send_values` stream from each of `senders` GPs: their values, in
 /// arrival order.
-async fn recv_values(gp: &Gp, mail: &mut Mailbox, tag: u64, senders: u32) -> Vec<f64> {
+async fn recv_values(gp: &Gp, mail: &mut GpLocal, tag: u64, senders: u32) -> Vec<f64> {
     let mut out = Vec::new();
     let mut done = 0;
     while done < senders {
@@ -73,7 +73,7 @@ async fn recv_values(gp: &Gp, mail: &mut Mailbox, tag: u64, senders: u32) -> Vec
 /// Sum every GP's partial form factors on GP 0 (returned there; empty elsewhere).
 async fn gather_on_gp0(
     gp: &Gp,
-    mail: &mut Mailbox,
+    mail: &mut GpLocal,
     partial: BTreeMap<u16, f64>,
 ) -> BTreeMap<u16, f64> {
     if gp.index() == 0 {
@@ -155,7 +155,7 @@ impl Program for FormFactorProgram {
         let count = self.polygons.len();
         Box::pin(async move {
             let mut culls = CullCounts::default();
-            let mut mail = Mailbox::default();
+            let mut mail = GpLocal::default();
             let shooter = Shooter {
                 point: p,
                 normal: n,
@@ -284,7 +284,7 @@ impl Program for RadiosityProgram {
                 })
                 .collect();
             let emitted: f64 = patches.iter().map(|p| power(p, p.emission)).sum();
-            let mut mail = Mailbox::default();
+            let mut mail = GpLocal::default();
             let mut culls = CullCounts::default();
             for _ in 0..shots {
                 // Shooter selection: every GP proposes its best; GP 0 picks and tells all.

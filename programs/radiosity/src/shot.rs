@@ -15,8 +15,8 @@ use pxpl5_machine::{Gp, Op, Payload, ProgramError, Unit};
 use pxpl5_renderer::{Command, Rect, readback};
 
 use crate::views::{
-    Cull, EdgeRule, Face, Frame, V3, ViewFields, hemicube_delta_ff, hemicube_polygon,
-    hemisphere_delta_ff, hemisphere_polygon, view_setup,
+    Cull, EdgeRule, Face, Frame, HemisphereDepth, V3, ViewFields, hemicube_delta_ff,
+    hemicube_polygon, hemisphere_delta_ff, hemisphere_polygon, view_setup, w_table,
 };
 
 /// How form factors are computed.
@@ -42,6 +42,8 @@ pub struct FfOptions {
     /// Pixels across the hemisphere's disk or the hemicube's top face.
     pub resolution: u32,
     pub edge_rule: EdgeRule,
+    /// Hemisphere depth: the seed's Taylor quadratic or a stored w per pixel.
+    pub depth: HemisphereDepth,
     /// Hemisphere delta form factors: the exact disk rule (true) or the seed's integral rule.
     pub exact_delta: bool,
     /// Hemicube: skip faces a receiver cannot touch after a cheap test (a real implementation
@@ -55,6 +57,7 @@ impl Default for FfOptions {
             method: Method::Hemisphere,
             resolution: 128,
             edge_rule: EdgeRule::SignOfC,
+            depth: HemisphereDepth::Taylor,
             exact_delta: true,
             skip_faces: true,
         }
@@ -190,15 +193,17 @@ const MAX_WORDS: u32 = 1000;
 /// Partial form factors this GP summed: receiver id -> F.
 pub type Partial = BTreeMap<u16, f64>;
 
-/// A GP's receive side with selective receive: messages that arrive before the program wants
-/// them (a GP's "done" while GP 0 still waits for its own fences, the next round's "go" while a
-/// GP still reads back) wait in the stash, in arrival order.
+/// What a GP keeps between shots: its receive side with selective receive (messages that arrive
+/// before the program wants them, a GP's "done" while GP 0 still waits for its own fences, the
+/// next round's "go" while a GP still reads back, wait in the stash in arrival order), and, on
+/// GP 0, the boards that already hold the hemisphere's w table.
 #[derive(Default)]
-pub struct Mailbox {
+pub struct GpLocal {
     stash: std::collections::VecDeque<pxpl5_machine::Message>,
+    boards_with_w: std::collections::BTreeSet<u32>,
 }
 
-impl Mailbox {
+impl GpLocal {
     /// The first message (stashed or new) that `want` accepts.
     pub async fn recv_where(
         &mut self,
@@ -267,7 +272,7 @@ pub async fn shoot(
     shooter: &Shooter,
     receivers: &[Receiver],
     culls: &mut CullCounts,
-    mail: &mut Mailbox,
+    mail: &mut GpLocal,
     items: Option<&ItemBuffers>,
 ) -> Result<Partial, ProgramError> {
     let rc = gp.renderer_config().clone();
@@ -327,6 +332,41 @@ pub async fn shoot(
                 );
                 cmds.push(fence(&fields, 0));
                 gp.send_commands(v.renderer, cmds).await;
+                // Stored-w depth: write the board's w table once per run, in messages of whole
+                // rows under the packet size ([assumed]: GP time per pixel as for accumulation).
+                if opts.depth == HemisphereDepth::StoredW
+                    && matches!(v.kind, ViewKind::Disk { .. })
+                    && mail.boards_with_w.insert(v.renderer)
+                {
+                    let n = opts.resolution;
+                    gp.compute(Op::FfAccumulatePerPixel, u64::from(v.width * v.rows))
+                        .await;
+                    let per_row = pxpl5_renderer::readback::words_needed(
+                        v.width as usize,
+                        fields.w_table.bits,
+                        word_bits,
+                    ) as u32;
+                    let rows_per = (MAX_WORDS / per_row.max(1)).max(1);
+                    let mut y = 0;
+                    while y < v.rows {
+                        let h = rows_per.min(v.rows - y);
+                        let values = w_table(n, (v.origin.0, v.origin.1 + y), v.width, h);
+                        let cmd = Command::WritePixels {
+                            dst: fields.w_table,
+                            rect: Rect {
+                                x: 0,
+                                y,
+                                width: v.width,
+                                height: h,
+                            },
+                            values,
+                        };
+                        gp.send_commands(v.renderer, vec![cmd]).await;
+                        y += h;
+                    }
+                    gp.send_commands(v.renderer, vec![fence(&fields, 0)]).await;
+                    mail.pixels(gp, v.renderer).await;
+                }
             }
             for v in round {
                 mail.pixels(gp, v.renderer).await;
@@ -347,9 +387,14 @@ pub async fn shoot(
             for (r, verts) in receivers.iter().zip(&local) {
                 gp.compute(Op::ClipTest, verts.len() as u64).await;
                 let drawn = match v.kind {
-                    ViewKind::Disk { n } => {
-                        hemisphere_polygon(verts, r.id, n, opts.edge_rule, &fields, format)
-                    }
+                    ViewKind::Disk { n } => hemisphere_polygon(
+                        verts,
+                        r.id,
+                        n,
+                        (opts.edge_rule, opts.depth),
+                        &fields,
+                        format,
+                    ),
                     ViewKind::Face { face, n } => {
                         if opts.skip_faces && !may_touch(verts, face) {
                             Err(Cull::OutsideFace)

@@ -104,9 +104,22 @@ pub enum EdgeRule {
 /// How depth is compared on the hemisphere.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum HemisphereDepth {
-    /// The seed's Taylor approximation w ~ 1 - (u^2 + v^2) / 2: one quadratic.
+    /// The seed's Taylor approximation w ~ 1 - (u^2 + v^2) / 2: one quadratic, compared and
+    /// stored by the QEE.
     Taylor,
+    /// The seed's second option: w = sqrt(1 - u^2 - v^2) stored once per pixel (written over the
+    /// ring), then per polygon lambda = (a u + b v) from the QEE plus c w by a bit-serial
+    /// multiply by a constant, an add, a compare and a copy. Exact, slower.
+    StoredW,
 }
+
+/// w is stored as round(w * 2^W_FRAC), unsigned, in W_BITS bits.
+pub const W_FRAC: u32 = 16;
+pub const W_BITS: u32 = 17;
+/// The constant c of c w is sent as round(c * 2^K_FRAC).
+pub const K_FRAC: u32 = 12;
+/// Bits the product w c carries below depth's fractional bits: it is added from this bit up.
+pub const PRODUCT_SHIFT: u32 = W_FRAC + K_FRAC - DEPTH_FRAC;
 
 /// The Renderer fields and flags a form-factor view uses.
 #[derive(Clone, Copy, Debug)]
@@ -118,6 +131,10 @@ pub struct ViewFields {
     pub pos: Bit,
     pub inside: Bit,
     pub t: Bit,
+    /// Stored-w depth: the w table, the linear part of lambda, and the product c w.
+    pub w_table: Field,
+    pub lambda: Field,
+    pub product: Field,
 }
 
 impl ViewFields {
@@ -130,6 +147,9 @@ impl ViewFields {
             pos: Bit::Flag(1),
             inside: Bit::Flag(2),
             t: Bit::Flag(3),
+            w_table: l.alloc("w", W_BITS, false)?,
+            lambda: l.alloc("lambda", DEPTH_BITS, true)?,
+            product: l.alloc("product", DEPTH_BITS + PRODUCT_SHIFT, true)?,
         })
     }
 }
@@ -185,7 +205,7 @@ pub fn hemisphere_polygon(
     verts: &[V3],
     id: u16,
     n: u32,
-    rule: EdgeRule,
+    (rule, depth): (EdgeRule, HemisphereDepth),
     f: &ViewFields,
     format: FixedFormat,
 ) -> Result<Vec<Command>, Cull> {
@@ -318,9 +338,60 @@ pub fn hemisphere_polygon(
             }
         }
     }
-    // Depth: 1/rho = (n'.dir) / d' with w ~ 1 - (u^2 + v^2) / 2 (the seed's Taylor option).
+    // Depth: 1/rho = (n'.dir) / d' = a u + b v + c w.
     let (a, b, c) = (normal[0] / d, normal[1] / d, normal[2] / d);
     let depth_scale = f64::from(DEPTH_FRAC as i32 - format.frac_bits as i32).exp2();
+    if depth == HemisphereDepth::StoredW {
+        let lin = to_pixels([a, b, 0.0, 0.0, 0.0, 0.0].map(|x| x * depth_scale), k, mo);
+        let lin = QeeExpr::quantise(lin, format).map_err(|_| Cull::Unrepresentable)?;
+        let kc = (c * f64::from(K_FRAC).exp2()).round();
+        if !(kc.abs() < 2f64.powi(31)) {
+            return Err(Cull::Unrepresentable);
+        }
+        let kc = kc as i64;
+        let k_bits = 65 - kc.unsigned_abs().leading_zeros().min(64);
+        let high = Field {
+            offset: f.product.offset + PRODUCT_SHIFT,
+            bits: DEPTH_BITS,
+            signed: true,
+        };
+        out.push(Command::QeeStore {
+            expr: lin,
+            window: Window {
+                shift: 0,
+                bits: DEPTH_BITS,
+            },
+            dst: f.lambda,
+        });
+        out.push(Command::MulConst {
+            dst: f.product,
+            src: f.w_table,
+            k: kc,
+            k_bits: k_bits.max(2),
+        });
+        out.push(Command::Add {
+            dst: f.lambda,
+            a: f.lambda,
+            b: high,
+        });
+        out.push(Command::Compare {
+            a: f.lambda,
+            b: f.depth,
+            cmp: Cmp::Gt,
+            dst: Bit::Enable,
+            combine: LogicOp::AND,
+        });
+        out.push(Command::Copy {
+            dst: f.depth,
+            src: f.lambda,
+        });
+        out.push(Command::WriteConst {
+            dst: f.id,
+            value: u64::from(id),
+        });
+        return Ok(out);
+    }
+    // The seed's Taylor option: w ~ 1 - (u^2 + v^2) / 2.
     let gamma = to_pixels(
         [a, b, c, -c / 2.0, 0.0, -c / 2.0].map(|x| x * depth_scale),
         k,
@@ -406,6 +477,29 @@ pub fn view_setup(
         dst: f.view,
         combine: LogicOp::B,
     });
+    out
+}
+
+/// The w table of the pixels `origin .. origin + (width, rows)` of a hemisphere of `n` pixels
+/// across: round(sqrt(1 - u^2 - v^2) * 2^W_FRAC) at each pixel centre, 0 outside the disk; row by
+/// row, as `WritePixels` takes it.
+pub fn w_table(n: u32, origin: (u32, u32), width: u32, rows: u32) -> Vec<u64> {
+    let h = 2.0 / f64::from(n);
+    let mut out = Vec::with_capacity((width * rows) as usize);
+    for t in origin.1..origin.1 + rows {
+        for s in origin.0..origin.0 + width {
+            let (u, v) = (
+                (f64::from(s) + 0.5) * h - 1.0,
+                (f64::from(t) + 0.5) * h - 1.0,
+            );
+            let w2 = 1.0 - u * u - v * v;
+            out.push(if w2 > 0.0 {
+                (w2.sqrt() * f64::from(W_FRAC).exp2()).round() as u64
+            } else {
+                0
+            });
+        }
+    }
     out
 }
 

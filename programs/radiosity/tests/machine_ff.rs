@@ -265,3 +265,57 @@ fn exact_progressive_solution_matches_the_direct_solve_and_the_machine_approache
         errors[1] * 100.0
     );
 }
+
+#[test]
+fn stored_w_depth_is_as_accurate_and_covers_the_same_pixels_as_taylor() {
+    use pxpl5_radiosity::views::HemisphereDepth;
+    let stored = |method| FfOptions {
+        depth: HemisphereDepth::StoredW,
+        ..options(method, 128)
+    };
+    // One large unoccluded polygon: the same accuracy as the Taylor option.
+    let poly = square([0.1, -0.2, 1.0], 0.8, [0.1, 0.0, 0.0]);
+    let exact = point_to_polygon([0.0; 3], [0.0, 0.0, 1.0], &poly);
+    let f = machine_ff(
+        [0.0; 3],
+        [0.0, 0.0, 1.0],
+        vec![poly],
+        stored(Method::Hemisphere),
+    )[0];
+    assert!(
+        ((f - exact) / exact).abs() < 0.006,
+        "stored w: {f} vs {exact}"
+    );
+    // Two polygons whose planes cross at low elevation: the coverage (the sum) is the same;
+    // only which of the two wins near the crossing line may differ.
+    let a = vec![
+        [1.0, -0.5, 0.05],
+        [1.0, 0.5, 0.05],
+        [1.0, 0.5, 0.6],
+        [1.0, -0.5, 0.6],
+    ];
+    let b = vec![
+        [0.7, -0.4, 0.02],
+        [1.3, -0.4, 0.5],
+        [1.3, 0.4, 0.5],
+        [0.7, 0.4, 0.02],
+    ];
+    let t = machine_ff(
+        [0.0; 3],
+        [0.0, 0.0, 1.0],
+        vec![a.clone(), b.clone()],
+        options(Method::Hemisphere, 128),
+    );
+    let s = machine_ff(
+        [0.0; 3],
+        [0.0, 0.0, 1.0],
+        vec![a, b],
+        stored(Method::Hemisphere),
+    );
+    let pixel = 4.0 / (std::f64::consts::PI * 128.0 * 128.0);
+    assert!(
+        ((t[0] + t[1]) - (s[0] + s[1])).abs() <= 2.0 * pixel,
+        "{t:?} vs {s:?}"
+    );
+    assert!(s[0] > 0.0 && s[1] > 0.0);
+}
