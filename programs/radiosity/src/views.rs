@@ -345,7 +345,8 @@ pub fn hemisphere_polygon(
         let lin = to_pixels([a, b, 0.0, 0.0, 0.0, 0.0].map(|x| x * depth_scale), k, mo);
         let lin = QeeExpr::quantise(lin, format).map_err(|_| Cull::Unrepresentable)?;
         let kc = (c * f64::from(K_FRAC).exp2()).round();
-        if !(kc.abs() < 2f64.powi(31)) {
+        // NaN or too large for a 32-bit constant.
+        if kc.is_nan() || kc.abs() >= 2f64.powi(31) {
             return Err(Cull::Unrepresentable);
         }
         let kc = kc as i64;
