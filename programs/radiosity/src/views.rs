@@ -464,9 +464,10 @@ pub fn view_setup(
         },
     ];
     let view_expr = if hemisphere {
-        // 1 - u^2 - v^2 >= 0 at the pixel centre.
+        // Every pixel that overlaps the unit disk: its centre within RIM of the origin.
         let (k, m) = (2.0 / f64::from(n), (1.0 - f64::from(n)) / f64::from(n));
-        to_pixels([0.0, 0.0, 1.0, -1.0, 0.0, -1.0], k, m)
+        let r = rim_radius(n as usize);
+        to_pixels([0.0, 0.0, r * r, -1.0, 0.0, -1.0], k, m)
     } else {
         // Rows below row0 + rows: (row0 + rows - 0.5) - t >= 0.
         [0.0, -1.0, f64::from(origin.1 + rows) - 0.5, 0.0, 0.0, 0.0]
@@ -504,8 +505,18 @@ pub fn w_table(n: u32, origin: (u32, u32), width: u32, rows: u32) -> Vec<u64> {
     out
 }
 
+/// The radius (in disk units) within which a pixel centre marks a pixel of the view: every pixel
+/// that overlaps the unit disk (its centre within half a pixel diagonal of the circle). Pixels cut
+/// by the circle thus keep their whole area inside it, instead of losing the part of those whose
+/// centre falls outside, which biased every form factor up by about 0.5 / (n / 2) once
+/// normalised. Their ID comes from the edge tests at the centre, which outside the circle reduce
+/// to the edge's line L >= 0 (Q > 0 there).
+pub fn rim_radius(n: usize) -> f64 {
+    1.0 + std::f64::consts::SQRT_2 / n as f64
+}
+
 /// Delta form factors of a hemisphere of `n` pixels across, row-major, normalised to sum 1 over
-/// the pixels whose centre is inside the disk (the pixels the board draws).
+/// the pixels the board draws (those overlapping the disk, see [`rim_radius`]).
 ///
 /// `exact`: the Nusselt analogue: a pixel's delta form factor is its area inside the unit circle
 /// over pi (computed by 64 x 64 sub-samples for pixels the circle cuts, exactly dx dy / pi for the
@@ -518,7 +529,7 @@ pub fn hemisphere_delta_ff(n: usize, exact: bool) -> Vec<f64> {
     for t in 0..n {
         for s in 0..n {
             let (u, v) = ((s as f64 + 0.5) * h - 1.0, (t as f64 + 0.5) * h - 1.0);
-            if u * u + v * v > 1.0 {
+            if u * u + v * v > rim_radius(n).powi(2) {
                 continue;
             }
             let (x0, y0) = (s as f64 * h - 1.0, t as f64 * h - 1.0);
