@@ -101,6 +101,14 @@ fn large_polygons_are_within_a_few_tenths_of_a_percent_at_128() {
     }
 }
 
+/// The error allowed for a polygon of form factor `f` at `n` pixels across: its boundary pixels
+/// (about the perimeter of its projected area, in pixels) each wrong by up to half a pixel's
+/// delta form factor (about 4 / (pi n^2) near the disk's centre), plus 0.6 %.
+fn size_tolerance(f: f64, n: f64) -> f64 {
+    let pixels = f * std::f64::consts::PI * n * n / 4.0;
+    4.0 * pixels.sqrt() * 2.0 / (std::f64::consts::PI * n * n) + 0.006 * f
+}
+
 #[test]
 fn small_polygons_within_a_tolerance_that_scales_with_projected_size() {
     let mut rng = Lcg(9);
@@ -318,4 +326,94 @@ fn stored_w_depth_is_as_accurate_and_covers_the_same_pixels_as_taylor() {
         "{t:?} vs {s:?}"
     );
     assert!(s[0] > 0.0 && s[1] > 0.0);
+}
+
+/// radiosity-formulas.md section 6 on the machine: an edge through the pole (C = 0), a polygon
+/// containing the pole, one straddling the horizon, one in the shooter's plane, and scenes at
+/// scales from 1e-6 to 1e6.
+#[test]
+fn extremes_of_section_6() {
+    let cases: Vec<Vec<V3>> = vec![
+        // An edge whose plane contains the polar axis.
+        vec![[0.0, -1.0, 1.0], [0.0, 1.0, 1.0], [-1.0, 0.0, 1.0]],
+        // Containing the pole.
+        vec![
+            [-0.3, -0.3, 1.0],
+            [0.3, -0.3, 1.0],
+            [0.3, 0.3, 1.0],
+            [-0.3, 0.3, 1.0],
+        ],
+        // Straddling the horizon.
+        vec![
+            [1.0, -0.5, -0.3],
+            [1.0, 0.5, -0.3],
+            [1.0, 0.5, 0.7],
+            [1.0, -0.5, 0.7],
+        ],
+    ];
+    for poly in &cases {
+        let exact = point_to_polygon([0.0; 3], [0.0, 0.0, 1.0], poly);
+        for method in [Method::Hemisphere, Method::Hemicube] {
+            let f = machine_ff(
+                [0.0; 3],
+                [0.0, 0.0, 1.0],
+                vec![poly.clone()],
+                options(method, 128),
+            )[0];
+            let tol = size_tolerance(exact, 128.0);
+            assert!(
+                (f - exact).abs() <= tol,
+                "{method:?} {poly:?}: {f} vs {exact}"
+            );
+        }
+    }
+    // In the shooter's plane: F = 0, and the GP culls it instead of dividing by D' = 0.
+    let flat = vec![
+        [1.0, -0.5, 0.0],
+        [2.0, -0.5, 0.0],
+        [2.0, 0.5, 0.0],
+        [1.0, 0.5, 0.0],
+    ];
+    for method in [Method::Hemisphere, Method::Hemicube] {
+        assert_eq!(
+            machine_ff(
+                [0.0; 3],
+                [0.0, 0.0, 1.0],
+                vec![flat.clone()],
+                options(method, 128)
+            )[0],
+            0.0
+        );
+    }
+    // Scale invariance: the GP translates and scales in f64 before fixed point.
+    let poly = square([0.2, 0.1, 1.0], 0.4, [0.1, 0.0, 0.0]);
+    let reference = machine_ff(
+        [0.0; 3],
+        [0.0, 0.0, 1.0],
+        vec![poly.clone()],
+        options(Method::Hemisphere, 128),
+    )[0];
+    for scale in [1e-6, 1e6] {
+        let origin = [3.0 * scale, -2.0 * scale, 5.0 * scale];
+        let scaled: Vec<V3> = poly
+            .iter()
+            .map(|v| {
+                [
+                    origin[0] + v[0] * scale,
+                    origin[1] + v[1] * scale,
+                    origin[2] + v[2] * scale,
+                ]
+            })
+            .collect();
+        let f = machine_ff(
+            origin,
+            [0.0, 0.0, 1.0],
+            vec![scaled],
+            options(Method::Hemisphere, 128),
+        )[0];
+        assert!(
+            (f - reference).abs() <= 1e-9,
+            "scale {scale}: {f} vs {reference}"
+        );
+    }
 }
