@@ -102,7 +102,7 @@ pub struct RingConfig {
     /// Order of the nodes around the ring. [assumed]: GPs and Renderers interleaved.
     #[serde(default)]
     pub node_order: NodeOrder,
-    /// Words of buffering per node per channel, input and output each. [assumed]: 2,048, the
+    /// Words of buffering per node (shared by its channels), input and output each. [assumed]: 2,048, the
     /// longest message with its header rounded up to a power of two (must be at least
     /// `max_message_words + header_words`, so a whole message always fits).
     #[serde(default = "defaults::ring_queue_words")]

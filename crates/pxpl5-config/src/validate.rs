@@ -42,6 +42,9 @@ pub fn validate(cfg: &MachineConfig) -> Result<(), Vec<SemanticError>> {
     c.clock("ring.channel_clock_hz", ring.channel_clock_hz);
     c.within("ring.word_bits", ring.word_bits.into(), 1, 64);
     c.at_least("ring.max_message_words", ring.max_message_words.into(), 1);
+    // A word or a token needs at least one channel clock per hop: at 0 a token would circle
+    // the ring in no time.
+    c.at_least("ring.hop_latency_cycles", ring.hop_latency_cycles.into(), 1);
     let needed = u64::from(ring.max_message_words) + u64::from(ring.header_words);
     if u64::from(ring.queue_words) < needed {
         c.fail(

@@ -896,3 +896,14 @@ fn config_files_write_every_field_and_tag_it() {
         assert_eq!(fields.len(), leaves.len(), "{file}: {:?}", fields.keys());
     }
 }
+
+#[test]
+fn hop_latency_must_be_at_least_one_clock() {
+    let mut cfg = pxpl5_config::default_config();
+    cfg.ring.hop_latency_cycles = 0;
+    let errors = pxpl5_config::validate(&cfg).unwrap_err();
+    assert!(
+        errors.iter().any(|e| e.path == "ring.hop_latency_cycles"),
+        "{errors:?}"
+    );
+}

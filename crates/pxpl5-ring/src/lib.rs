@@ -73,9 +73,8 @@
 //! starts, so no word ever waits on the ring, and held until the receiver calls
 //! [`Ring::consume`] with the delivered message's id. Credit is reserved per message, not per
 //! packet, because per-packet credit deadlocks: two long messages to one node could each get
-//! some packets in and leave no room for the rest of either, and neither could be consumed. (The
-//! config's doc of `queue_words` says "per node per channel"; this model makes both queues per
-//! node, shared by channels.)
+//! some packets in and leave no room for the rest of either, and neither could be consumed. Both
+//! queues are per node, shared by its channels, as the config's `queue_words` says.
 //!
 //! **Calls and time.** [`Ring::advance`]`(until)` runs every edge up to and including `until`:
 //! what is due at `until` happens, but the capture decisions of the edge at `until` are left to
