@@ -182,7 +182,7 @@ pub const PROVENANCE: &[Provenance] = &[
     p(
         "ring.queue_words",
         Assumed,
-        "2,048 words per node, channel and direction: a whole message and its header fit (no source found)",
+        "2,048 words per node and direction, shared by its channels: a whole message and its header fit (no source found)",
     ),
     // Renderers.
     p(
