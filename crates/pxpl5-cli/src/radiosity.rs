@@ -57,6 +57,10 @@ pub struct RadiosityArgs {
     /// Hemicube: transform and clip every receiver for every face (no cheap face test).
     #[arg(long)]
     pub all_faces: bool,
+    /// Shoot this many patches at once, their views spread over the Renderers (1: classic
+    /// progressive refinement).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub shooters_at_once: u32,
     /// Hemisphere depth: taylor (the seed's quadratic approximation) or stored-w (w per pixel,
     /// exact, slower).
     #[arg(long, default_value = "taylor", value_parser = ["taylor", "stored-w"])]
@@ -147,6 +151,7 @@ fn run_method(
         args.threshold,
     );
     program.item_shots = args.item_buffers.clone();
+    program.shooters_at_once = args.shooters_at_once as usize;
     let options = RunOptions {
         fidelity,
         max_time: pxpl5_sim::Tick(1_000_000_000_000_000),

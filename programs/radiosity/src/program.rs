@@ -162,9 +162,16 @@ impl Program for FormFactorProgram {
                 scale,
             };
             let partial = shoot(
-                &gp, &opts, &shooter, &receivers, &mut culls, &mut mail, None,
+                &gp,
+                &opts,
+                std::slice::from_ref(&shooter),
+                &receivers,
+                &mut culls,
+                &mut mail,
+                None,
             )
-            .await?;
+            .await?
+            .remove(0);
             gp.phase("gather");
             let total = gather_on_gp0(&gp, &mut mail, partial).await;
             let mut r = result.borrow_mut();
@@ -213,6 +220,9 @@ pub struct RadiosityProgram {
     /// Scene size (the frame scale for every shot).
     pub scale: f64,
     pub solution: Rc<RefCell<Solution>>,
+    /// Shooters per batch: their views are spread over the Renderers and computed together
+    /// (1: classic progressive refinement).
+    pub shooters_at_once: usize,
     /// Shots (0-based) whose item buffers to keep for pictures.
     pub item_shots: Vec<usize>,
     /// The kept item buffers: (shot, its views).
@@ -244,6 +254,7 @@ impl RadiosityProgram {
             threshold,
             scale,
             solution: Rc::new(RefCell::new(solution)),
+            shooters_at_once: 1,
             item_shots: Vec::new(),
             item_buffers: Rc::default(),
         }
@@ -266,6 +277,7 @@ impl Program for RadiosityProgram {
             (self.options, self.shots, self.threshold, self.scale);
         let item_shots = self.item_shots.clone();
         let item_buffers = self.item_buffers.clone();
+        let at_once = self.shooters_at_once;
         Box::pin(async move {
             let (g, gps) = (gp.index() as usize, gp.gp_count() as usize);
             if patches.len() >= u16::MAX as usize {
@@ -286,42 +298,49 @@ impl Program for RadiosityProgram {
             let emitted: f64 = patches.iter().map(|p| power(p, p.emission)).sum();
             let mut mail = GpLocal::default();
             let mut culls = CullCounts::default();
-            for _ in 0..shots {
-                // Shooter selection: every GP proposes its best; GP 0 picks and tells all.
+            let at_once = at_once.max(1);
+            // Shots taken so far: every GP counts the same picks (the shared solution's list is
+            // GP 0's record, written at its own pace).
+            let mut taken = 0usize;
+            while taken < shots {
+                let batch = at_once.min(shots - taken);
+                // Shooter selection: every GP proposes its `batch` best owned patches; GP 0
+                // picks the `batch` best overall and tells everyone.
                 gp.phase("select");
                 gp.compute(Op::RadiosityUpdatePerPatch, owned.len() as u64)
                     .await;
-                let best = {
+                // A proposal: [power, patch, its unshot radiosity per band] per candidate.
+                let proposal: Vec<f64> = {
                     let s = solution.borrow();
-                    owned
+                    let mut mine: Vec<(f64, usize)> = owned
                         .iter()
                         .map(|&j| (power(&patches[j], s.unshot[j]), j))
-                        .fold((-1.0, usize::MAX), |a, b| if b.0 > a.0 { b } else { a })
+                        .collect();
+                    mine.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+                    mine.iter()
+                        .take(batch)
+                        .flat_map(|&(p, j)| {
+                            let u = s.unshot[j];
+                            [p, j as f64, u[0], u[1], u[2]]
+                        })
+                        .collect()
                 };
-                // A proposal: [power, patch, its unshot radiosity per band].
-                let proposal = {
-                    let u = if best.1 == usize::MAX {
-                        [0.0; 3]
-                    } else {
-                        solution.borrow().unshot[best.1]
-                    };
-                    vec![best.0, best.1 as f64, u[0], u[1], u[2]]
-                };
-                let pick = if g == 0 {
+                let picks: Vec<f64> = if g == 0 {
                     let mut all = proposal;
                     all.extend(recv_values(&gp, &mut mail, TAG_PROPOSE, gps as u32 - 1).await);
-                    let mut chosen = vec![-1.0, 0.0, 0.0, 0.0];
-                    let (mut bp, mut bj) = (-1.0, usize::MAX);
-                    for c in all.chunks(5) {
-                        let j = c[1] as usize;
-                        if c[1] >= 0.0 && (c[0] > bp || (c[0] == bp && j < bj)) {
-                            (bp, bj) = (c[0], j);
-                            chosen = vec![c[1], c[2], c[3], c[4]];
-                        }
-                    }
-                    if emitted <= 0.0 || bp / emitted < threshold || bj == usize::MAX {
-                        chosen[0] = -1.0;
-                    }
+                    let mut candidates: Vec<&[f64]> = all.chunks(5).collect();
+                    candidates.sort_by(|a, b| b[0].total_cmp(&a[0]).then(a[1].total_cmp(&b[1])));
+                    let best = candidates.first().map(|c| c[0]).unwrap_or(0.0);
+                    let chosen: Vec<f64> = if emitted <= 0.0 || best / emitted < threshold {
+                        Vec::new()
+                    } else {
+                        candidates
+                            .iter()
+                            .take(batch)
+                            .filter(|c| c[0] > 0.0)
+                            .flat_map(|c| [c[1], c[2], c[3], c[4]])
+                            .collect()
+                    };
                     for other in 1..gps as u32 {
                         send_values(&gp, other, TAG_SHOOTER, chosen.clone()).await;
                     }
@@ -330,24 +349,28 @@ impl Program for RadiosityProgram {
                     send_values(&gp, 0, TAG_PROPOSE, proposal).await;
                     recv_values(&gp, &mut mail, TAG_SHOOTER, 1).await
                 };
-                let shooter = pick[0];
-                if shooter < 0.0 {
+                if picks.is_empty() {
                     if g == 0 {
                         solution.borrow_mut().converged = true;
                     }
                     break;
                 }
-                let i = shooter as usize;
-                let shooter_patch = &patches[i];
-                let d_b = [pick[1], pick[2], pick[3]];
+                // (shooter patch, its unshot radiosity at selection).
+                let chosen: Vec<(usize, [f64; 3])> = picks
+                    .chunks(4)
+                    .map(|c| (c[0] as usize, [c[1], c[2], c[3]]))
+                    .collect();
+                let shooters: Vec<Shooter> = chosen
+                    .iter()
+                    .map(|&(i, _)| Shooter {
+                        point: patches[i].centre,
+                        normal: patches[i].normal,
+                        scale,
+                    })
+                    .collect();
 
-                // Form factors from the shooter's centre, computed by all GPs together.
-                let shooter = Shooter {
-                    point: shooter_patch.centre,
-                    normal: shooter_patch.normal,
-                    scale,
-                };
-                let shot_index = solution.borrow().shots.len();
+                // Form factors from the shooters' centres, computed by all GPs together.
+                let shot_index = taken;
                 let items = item_shots.contains(&shot_index).then(|| {
                     let mut all = item_buffers.borrow_mut();
                     if !all.iter().any(|(s, _)| *s == shot_index) {
@@ -359,10 +382,10 @@ impl Program for RadiosityProgram {
                         .1
                         .clone()
                 });
-                let partial = shoot(
+                let partials = shoot(
                     &gp,
                     &opts,
-                    &shooter,
+                    &shooters,
                     &receivers,
                     &mut culls,
                     &mut mail,
@@ -370,18 +393,20 @@ impl Program for RadiosityProgram {
                 )
                 .await?;
 
-                // Partial sums to the receivers' owners.
+                // Partial sums to the receivers' owners: (shooter, receiver, F) triples.
                 gp.phase("exchange");
                 let mut by_owner: Vec<Vec<f64>> = vec![Vec::new(); gps];
-                for (id, f) in partial {
-                    let j = id as usize - 1;
-                    by_owner[j % gps].extend([j as f64, f]);
+                for (k, partial) in partials.into_iter().enumerate() {
+                    for (id, f) in partial {
+                        let j = id as usize - 1;
+                        by_owner[j % gps].extend([k as f64, j as f64, f]);
+                    }
                 }
-                let mut mine: BTreeMap<usize, f64> = BTreeMap::new();
+                let mut mine: BTreeMap<(usize, usize), f64> = BTreeMap::new();
                 for (o, values) in by_owner.into_iter().enumerate() {
                     if o == g {
-                        for c in values.chunks(2) {
-                            *mine.entry(c[0] as usize).or_default() += c[1];
+                        for c in values.chunks(3) {
+                            *mine.entry((c[0] as usize, c[1] as usize)).or_default() += c[2];
                         }
                     } else {
                         send_values(&gp, o as u32, TAG_PARTIAL, values).await;
@@ -389,22 +414,30 @@ impl Program for RadiosityProgram {
                 }
                 for c in recv_values(&gp, &mut mail, TAG_PARTIAL, gps as u32 - 1)
                     .await
-                    .chunks(2)
+                    .chunks(3)
                 {
-                    *mine.entry(c[0] as usize).or_default() += c[1];
+                    *mine.entry((c[0] as usize, c[1] as usize)).or_default() += c[2];
                 }
 
-                // Radiosity update of the owned receivers.
+                // Radiosity update of the owned receivers. The shooters' unshot radiosity is
+                // cleared first, so what one shooter of a batch receives from another stays
+                // unshot.
                 gp.phase("radiosity update");
                 gp.compute(Op::RadiosityUpdatePerPatch, 3 * mine.len() as u64)
                     .await;
                 {
                     let mut s = solution.borrow_mut();
-                    for (&j, &f) in &mine {
+                    for &(i, _) in &chosen {
+                        if i % gps == g {
+                            s.unshot[i] = [0.0; 3];
+                        }
+                    }
+                    for (&(k, j), &f) in &mine {
+                        let (i, d_b) = chosen[k];
                         if j == i {
                             continue;
                         }
-                        let mut fji = f * shooter_patch.area / patches[j].area;
+                        let mut fji = f * patches[i].area / patches[j].area;
                         if fji > 1.0 {
                             fji = 1.0;
                             s.reciprocity_clamps += 1;
@@ -415,13 +448,12 @@ impl Program for RadiosityProgram {
                             s.unshot[j][band] += d;
                         }
                     }
-                    if i % gps == g {
-                        s.unshot[i] = [0.0; 3];
-                    }
                     if g == 0 {
-                        s.shots.push((i, gp.now()));
+                        let now = gp.now();
+                        s.shots.extend(chosen.iter().map(|&(i, _)| (i, now)));
                     }
                 }
+                taken += chosen.len();
             }
             add_culls(&mut solution.borrow_mut().culls, &culls);
             gp.phase("done");

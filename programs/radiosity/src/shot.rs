@@ -74,6 +74,8 @@ pub struct Receiver {
 /// One view: where it is drawn and how its pixels weigh.
 #[derive(Clone, Debug)]
 struct View {
+    /// Which of the shot's shooters it belongs to.
+    shooter: usize,
     renderer: u32,
     kind: ViewKind,
     /// QEE origin of the board.
@@ -145,6 +147,7 @@ fn views(opts: &FfOptions, renderers: u32, side: u32) -> Result<Vec<View>, Progr
                         }
                     }
                     out.push(View {
+                        shooter: 0,
                         renderer: ty * tiles + tx,
                         kind: ViewKind::Disk { n },
                         origin: (x0, y0),
@@ -170,6 +173,7 @@ fn views(opts: &FfOptions, renderers: u32, side: u32) -> Result<Vec<View>, Progr
             }
             for (i, face, delta) in faces {
                 out.push(View {
+                    shooter: 0,
                     renderer: i % renderers,
                     kind: ViewKind::Face { face, n },
                     origin: (0, face.row0(n)),
@@ -200,7 +204,8 @@ pub type Partial = BTreeMap<u16, f64>;
 #[derive(Default)]
 pub struct GpLocal {
     stash: std::collections::VecDeque<pxpl5_machine::Message>,
-    boards_with_w: std::collections::BTreeSet<u32>,
+    /// Board -> the origin of the w table it holds.
+    boards_with_w: BTreeMap<u32, (u32, u32)>,
 }
 
 impl GpLocal {
@@ -264,17 +269,18 @@ pub struct ItemBuffer {
 /// Item buffers of a shot, shared by the GPs that fill them.
 pub type ItemBuffers = std::rc::Rc<std::cell::RefCell<Vec<ItemBuffer>>>;
 
-/// Compute one shot's form factors from `shooter`: every GP runs this with the receivers it
-/// owns; each returns the partial sums of its band of every view.
+/// Compute the form factors of one or more shooters at once (their views spread over the
+/// Renderers, one view per Renderer per round): every GP runs this with the receivers it owns;
+/// each returns, per shooter, the partial sums of its band of every view.
 pub async fn shoot(
     gp: &Gp,
     opts: &FfOptions,
-    shooter: &Shooter,
+    shooters: &[Shooter],
     receivers: &[Receiver],
     culls: &mut CullCounts,
     mail: &mut GpLocal,
     items: Option<&ItemBuffers>,
-) -> Result<Partial, ProgramError> {
+) -> Result<Vec<Partial>, ProgramError> {
     let rc = gp.renderer_config().clone();
     let side = rc.width.min(rc.height);
     let format = rc.qee.coefficient_format;
@@ -282,23 +288,39 @@ pub async fn shoot(
     let coefficient_bits = format.total_bits();
     let fields =
         ViewFields::allocate(rc.pixel_memory_bits).map_err(|e| ProgramError(e.to_string()))?;
-    let all_views = views(opts, gp.renderer_count(), side)?;
-    let (g, gps) = (gp.index(), gp.gp_count());
-    let frame = Frame::new(shooter.point, shooter.normal, shooter.scale);
-    let mut partial = Partial::new();
-
-    // The receivers in the shooter's frame (one transform per vertex per shot).
-    gp.compute(
-        Op::VertexTransform,
-        receivers.iter().map(|r| r.vertices.len() as u64).sum(),
-    )
-    .await;
-    let local: Vec<Vec<V3>> = receivers
-        .iter()
-        .map(|r| r.vertices.iter().map(|v| frame.local(*v)).collect())
-        .collect();
-
     let renderers = gp.renderer_count();
+    // Every shooter's views, numbered across shooters so that consecutive views land on
+    // consecutive Renderers.
+    let one = views(opts, renderers, side)?;
+    let mut all_views = Vec::new();
+    for s in 0..shooters.len() {
+        for v in &one {
+            let mut v = v.clone();
+            v.shooter = s;
+            v.renderer = (all_views.len() as u32) % renderers;
+            all_views.push(v);
+        }
+    }
+    let (g, gps) = (gp.index(), gp.gp_count());
+    let mut partial = vec![Partial::new(); shooters.len()];
+
+    // The receivers in each shooter's frame (one transform per vertex per shooter).
+    let mut local: Vec<Vec<Vec<V3>>> = Vec::new();
+    for shooter in shooters {
+        gp.compute(
+            Op::VertexTransform,
+            receivers.iter().map(|r| r.vertices.len() as u64).sum(),
+        )
+        .await;
+        let frame = Frame::new(shooter.point, shooter.normal, shooter.scale);
+        local.push(
+            receivers
+                .iter()
+                .map(|r| r.vertices.iter().map(|v| frame.local(*v)).collect())
+                .collect(),
+        );
+    }
+
     let rounds: Vec<Vec<View>> = {
         let mut rounds: Vec<Vec<View>> = Vec::new();
         for v in all_views {
@@ -336,7 +358,7 @@ pub async fn shoot(
                 // rows under the packet size ([assumed]: GP time per pixel as for accumulation).
                 if opts.depth == HemisphereDepth::StoredW
                     && matches!(v.kind, ViewKind::Disk { .. })
-                    && mail.boards_with_w.insert(v.renderer)
+                    && mail.boards_with_w.insert(v.renderer, v.origin) != Some(v.origin)
                 {
                     let n = opts.resolution;
                     gp.compute(Op::FfAccumulatePerPixel, u64::from(v.width * v.rows))
@@ -384,7 +406,7 @@ pub async fn shoot(
         for v in round {
             let mut batch: Vec<Command> = Vec::new();
             let mut words = 0;
-            for (r, verts) in receivers.iter().zip(&local) {
+            for (r, verts) in receivers.iter().zip(&local[v.shooter]) {
                 gp.compute(Op::ClipTest, verts.len() as u64).await;
                 let drawn = match v.kind {
                     ViewKind::Disk { n } => hemisphere_polygon(
@@ -489,7 +511,7 @@ pub async fn shoot(
                 gp.compute(Op::FfAccumulatePerPixel, count as u64).await;
                 if let Some(items) = items {
                     let mut all = items.borrow_mut();
-                    let name = view_name(v, round.len());
+                    let name = view_name(v);
                     let k = match all.iter().position(|b| b.view == name) {
                         Some(k) => k,
                         None => {
@@ -512,7 +534,8 @@ pub async fn shoot(
                         continue;
                     }
                     let (s, t) = (i as u32 % rect.width, rect.y + i as u32 / rect.width);
-                    *partial.entry(id as u16).or_default() += v.delta[(t * v.width + s) as usize];
+                    *partial[v.shooter].entry(id as u16).or_default() +=
+                        v.delta[(t * v.width + s) as usize];
                 }
                 remaining -= count as u64;
                 gp.phase("id readback");
@@ -523,9 +546,9 @@ pub async fn shoot(
 }
 
 /// A view's name in pictures.
-fn view_name(v: &View, _round: usize) -> String {
-    match v.kind {
-        ViewKind::Disk { .. } => format!("hemisphere-{}", v.renderer),
+fn view_name(v: &View) -> String {
+    let view = match v.kind {
+        ViewKind::Disk { .. } => format!("hemisphere-tile{}", v.origin.0 / 128 + v.origin.1 / 64),
         ViewKind::Face {
             face: Face::Top, ..
         } => "hemicube-top".to_string(),
@@ -533,7 +556,8 @@ fn view_name(v: &View, _round: usize) -> String {
             face: Face::Side(k),
             ..
         } => format!("hemicube-side{k}"),
-    }
+    };
+    format!("shooter{}-{view}", v.shooter)
 }
 
 /// A one-pixel readback of the ID field to GP `g`: it executes after every earlier command on

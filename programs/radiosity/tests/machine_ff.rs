@@ -417,3 +417,41 @@ fn extremes_of_section_6() {
         );
     }
 }
+
+#[test]
+fn shooting_several_patches_at_once_converges_to_the_same_solution() {
+    let scene = scenes::empty_box();
+    let patches = mesh(&scene, 0.5).expect("meshes");
+    let f = solver::exact_matrix(&patches);
+    let exact = solver::direct(&patches, &f);
+    let cfg = pxpl5_config::default_config();
+    let mut times = Vec::new();
+    for at_once in [1, 4] {
+        let mut program =
+            RadiosityProgram::new(patches.clone(), options(Method::Hemisphere, 128), 200, 1e-3);
+        program.shooters_at_once = at_once;
+        let r = Machine::new(&cfg, &program, RunOptions::default(), Recorder::default())
+            .expect("builds")
+            .run()
+            .expect("runs");
+        let s = program.solution.borrow();
+        assert!(
+            s.converged,
+            "{at_once} at once did not converge in 200 shots"
+        );
+        let err = s
+            .radiosity
+            .iter()
+            .zip(&exact)
+            .map(|(a, b)| (a[0] - b[0]).abs() / b[0])
+            .fold(0.0f64, f64::max);
+        assert!(
+            err < 0.03,
+            "{at_once} at once: {:.2}% from the direct solve",
+            err * 100.0
+        );
+        times.push((r.stats.end.0 as f64) / s.shots.len() as f64);
+    }
+    // Four hemispheres on four Renderers at once: less simulated time per shot.
+    assert!(times[1] < times[0], "per-shot time {times:?}");
+}
