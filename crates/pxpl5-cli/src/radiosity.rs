@@ -21,7 +21,7 @@ use pxpl5_renderer::Fidelity;
 
 use crate::UserError;
 use crate::config_cmd;
-use crate::run::{png_bytes, probe_writable, write_atomic};
+use crate::run::{png_bytes, probe_writable, trace_setup, write_atomic};
 
 /// Options of `pxpl5 radiosity`.
 #[derive(Args, Clone, Debug)]
@@ -238,18 +238,10 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
         "hemicube" => vec![Method::Hemicube],
         _ => vec![Method::Hemisphere, Method::Hemicube],
     };
-    let window = match &args.trace_window {
-        Some(w) => pxpl5_trace::TraceWindow::parse(w)
-            .map_err(|e| UserError(format!("--trace-window: {e}")))?,
-        None => pxpl5_trace::TraceWindow::all(),
-    };
-    for f in [&args.trace, &args.vcd].into_iter().flatten() {
-        let dir = f
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(std::path::Path::new("."));
-        probe_writable(dir)?;
-    }
+    let window = trace_setup(
+        args.trace_window.as_deref(),
+        [args.trace.as_deref(), args.vcd.as_deref()],
+    )?;
     let mut runs = Vec::new();
     for m in methods {
         eprintln!(

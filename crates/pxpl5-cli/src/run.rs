@@ -65,10 +65,6 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
         (None, Some(n)) => scenes::random_scene(n, args.seed, 3.0),
         (None, None) => scenes::builtin_scene(),
     };
-    let window = match &args.trace_window {
-        Some(w) => TraceWindow::parse(w).map_err(|e| UserError(format!("--trace-window: {e}")))?,
-        None => TraceWindow::all(),
-    };
     let max_time = parse_time(&args.max_time).map_err(|e| UserError(format!("--max-time: {e}")))?;
     let fidelity: Fidelity = args.fidelity.parse()?;
 
@@ -80,13 +76,10 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
         ))
     })?;
     probe_writable(&args.out)?;
-    for f in [&args.trace, &args.vcd].into_iter().flatten() {
-        let dir = f
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        probe_writable(dir)?;
-    }
+    let window = trace_setup(
+        args.trace_window.as_deref(),
+        [args.trace.as_deref(), args.vcd.as_deref()],
+    )?;
 
     let program = Polygons::new(scene);
     let recorder = Recorder::new(
@@ -146,6 +139,26 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
         args.out.display()
     );
     Ok(())
+}
+
+/// The window of `--trace-window` (all of time without it), after checking that the files of
+/// `--trace` and `--vcd` can be written: both fail before any simulation.
+pub fn trace_setup(
+    window: Option<&str>,
+    files: [Option<&Path>; 2],
+) -> Result<TraceWindow, UserError> {
+    let window = match window {
+        Some(w) => TraceWindow::parse(w).map_err(|e| UserError(format!("--trace-window: {e}")))?,
+        None => TraceWindow::all(),
+    };
+    for f in files.into_iter().flatten() {
+        let dir = f
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        probe_writable(dir)?;
+    }
+    Ok(window)
 }
 
 /// Fail early, with the path, if `dir` cannot take a file.

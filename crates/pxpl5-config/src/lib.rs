@@ -60,25 +60,44 @@ pub fn default_config() -> MachineConfig {
 /// The file's path (as given) names the source in every error. A file that is not UTF-8 is an
 /// error ([`ConfigError::NotUtf8`]) that points at the first invalid byte.
 pub fn load_file(path: &Path) -> Result<MachineConfig, ConfigError> {
+    let (shown, text) = read_text(path)?;
+    parse_str(&shown, &text)
+}
+
+/// The text of a file of this crate's formats, and its path as given (it names the source in
+/// every error); a file that is not UTF-8 is an error pointing at the first invalid byte.
+pub(crate) fn read_text(path: &Path) -> Result<(String, String), ConfigError> {
     let shown = path.display().to_string();
     let bytes = std::fs::read(path).map_err(|source| ConfigError::Io {
         path: shown.clone(),
         source,
     })?;
-    let text = match String::from_utf8(bytes) {
-        Ok(text) => text,
-        Err(e) => return Err(ConfigError::not_utf8(&shown, e.as_bytes(), e.utf8_error())),
-    };
-    parse_str(&shown, &text)
+    match String::from_utf8(bytes) {
+        Ok(text) => Ok((shown, text)),
+        Err(e) => Err(ConfigError::not_utf8(&shown, e.as_bytes(), e.utf8_error())),
+    }
+}
+
+/// Parse RON text into `T` and run `check` on it: syntax and type errors with file, line and
+/// column, semantic errors with their field paths, all named by `file_name`.
+pub(crate) fn parse_checked<T: serde::de::DeserializeOwned>(
+    file_name: &str,
+    text: &str,
+    check: impl FnOnce(&T) -> Result<(), Vec<SemanticError>>,
+) -> Result<T, ConfigError> {
+    let value: T = ron::Options::default()
+        .from_str(text)
+        .map_err(|e| ConfigError::syntax(file_name, text, &e))?;
+    check(&value).map_err(|errors| ConfigError::Semantic {
+        file: file_name.to_string(),
+        errors,
+    })?;
+    Ok(value)
 }
 
 /// Parses and validates a machine config held in memory; `file_name` names it in errors.
 pub fn parse_str(file_name: &str, text: &str) -> Result<MachineConfig, ConfigError> {
-    let cfg: MachineConfig = ron::Options::default()
-        .from_str(text)
-        .map_err(|e| ConfigError::syntax(file_name, text, &e))?;
-    check(file_name, &cfg)?;
-    Ok(cfg)
+    parse_checked(file_name, text, validate)
 }
 
 /// Runs [`validate`] and wraps its findings in a [`ConfigError::Semantic`] naming `origin` (a file

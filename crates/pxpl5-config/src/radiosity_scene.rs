@@ -138,28 +138,13 @@ const STRAIGHT_CORNER: f64 = 1e-9;
 
 /// Read, parse and check a radiosity scene. The file's path (as given) names the source in errors.
 pub fn load_radiosity_scene(path: &Path) -> Result<RadiosityScene, ConfigError> {
-    let shown = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|source| ConfigError::Io {
-        path: shown.clone(),
-        source,
-    })?;
-    let text = match String::from_utf8(bytes) {
-        Ok(text) => text,
-        Err(e) => return Err(ConfigError::not_utf8(&shown, e.as_bytes(), e.utf8_error())),
-    };
+    let (shown, text) = crate::read_text(path)?;
     parse_radiosity_scene(&shown, &text)
 }
 
 /// Parse and check a radiosity scene held in memory; `file_name` names it in errors.
 pub fn parse_radiosity_scene(file_name: &str, text: &str) -> Result<RadiosityScene, ConfigError> {
-    let scene: RadiosityScene = ron::Options::default()
-        .from_str(text)
-        .map_err(|e| ConfigError::syntax(file_name, text, &e))?;
-    check_radiosity_scene(&scene).map_err(|errors| ConfigError::Semantic {
-        file: file_name.to_string(),
-        errors,
-    })?;
-    Ok(scene)
+    crate::parse_checked(file_name, text, check_radiosity_scene)
 }
 
 fn finite(v: Vec3) -> bool {

@@ -54,24 +54,13 @@ pub struct TriangleScene {
 
 /// Read, parse and check a triangle scene.
 pub fn load_triangle_scene(path: &Path) -> Result<TriangleScene, ConfigError> {
-    let shown = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
-        path: shown.clone(),
-        source,
-    })?;
+    let (shown, text) = crate::read_text(path)?;
     parse_triangle_scene(&shown, &text)
 }
 
 /// Parse and check a triangle scene held in memory; `file_name` names it in errors.
 pub fn parse_triangle_scene(file_name: &str, text: &str) -> Result<TriangleScene, ConfigError> {
-    let scene: TriangleScene = ron::Options::default()
-        .from_str(text)
-        .map_err(|e| ConfigError::syntax(file_name, text, &e))?;
-    check_triangle_scene(&scene).map_err(|errors| ConfigError::Semantic {
-        file: file_name.to_string(),
-        errors,
-    })?;
-    Ok(scene)
+    crate::parse_checked(file_name, text, check_triangle_scene)
 }
 
 fn finite(v: Vec3) -> bool {

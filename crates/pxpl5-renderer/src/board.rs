@@ -312,6 +312,9 @@ impl Board {
     /// The pixel (or board-state) effect of a validated command that ends at cycle `end`.
     fn apply(&mut self, cmd: &Command, end: Cycles, readback: &mut Option<ReadbackWords>) {
         let gated = self.engine.get().registers().active_words(None);
+        // The QEE's streams for this board's origin and size.
+        let (origin, g) = (self.origin, self.geometry);
+        let streams = |expr: &crate::QeeExpr| Streams::new(expr, origin, g.width, g.height);
         match *cmd {
             Command::SetOrigin { x, y } => self.origin = (x, y),
             Command::Logic { dst, a, b, op } => {
@@ -328,7 +331,7 @@ impl Board {
                     .get()
                     .registers()
                     .active_words(enable_write(dst, combine));
-                let s = Streams::new(expr, self.origin, self.geometry.width, self.geometry.height);
+                let s = streams(expr);
                 self.engine
                     .get_mut()
                     .qee(&s, window, QeeSink::Sign { dst, combine }, &active);
@@ -338,7 +341,7 @@ impl Board {
                 window,
                 dst,
             } => {
-                let s = Streams::new(expr, self.origin, self.geometry.width, self.geometry.height);
+                let s = streams(expr);
                 self.engine
                     .get_mut()
                     .qee(&s, window, QeeSink::Store { dst }, &gated);
@@ -356,7 +359,7 @@ impl Board {
                     .get()
                     .registers()
                     .active_words(enable_write(dst, combine));
-                let s = Streams::new(expr, self.origin, self.geometry.width, self.geometry.height);
+                let s = streams(expr);
                 let sink = QeeSink::Compare {
                     field,
                     cmp,
@@ -370,7 +373,7 @@ impl Board {
                 window,
                 dst,
             } => {
-                let s = Streams::new(expr, self.origin, self.geometry.width, self.geometry.height);
+                let s = streams(expr);
                 self.engine
                     .get_mut()
                     .qee(&s, window, QeeSink::Add { dst }, &gated);

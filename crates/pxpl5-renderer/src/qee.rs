@@ -187,6 +187,21 @@ impl QeeExpr {
     }
 }
 
+/// Real coefficients `[A, B, C, D, E, F]` of `A u + B v + C + D u^2 + E uv + F v^2` rewritten for
+/// pixel addresses by substituting u = k s + m and v = k t + m: how a GP program maps its own
+/// coordinates (a disk from -1 to 1, say) onto the QEE's addresses before quantising.
+pub fn substitute_affine(q: [f64; 6], k: f64, m: f64) -> [f64; 6] {
+    let [a, b, c, d, e, f] = q;
+    [
+        a * k + 2.0 * d * k * m + e * k * m,
+        b * k + 2.0 * f * k * m + e * k * m,
+        c + (a + b) * m + (d + e + f) * m * m,
+        d * k * k,
+        e * k * k,
+        f * k * k,
+    ]
+}
+
 /// The three streams of the tree for one command on one board (see the module doc):
 /// `V(px, py) = col[px] + row[py] + e_row[py] * x`, with x = origin_x + px.
 #[derive(Clone, Debug)]

@@ -23,7 +23,7 @@ use pxpl5_sim::Cycles;
 use crate::board::{Board, CommandError};
 use crate::command::{Bit, Cmp, Command, Field, LogicOp};
 use crate::layout::PixelLayout;
-use crate::qee::{QeeExpr, QuantiseError, Window};
+use crate::qee::{QeeExpr, QuantiseError, Window, substitute_affine};
 
 /// A command stream and what it allocated.
 #[derive(Clone, Debug)]
@@ -100,20 +100,6 @@ fn normalise(a: V3) -> V3 {
     scale(a, 1.0 / dot(a, a).sqrt())
 }
 
-/// Coefficients `[A, B, C, D, E, F]` of `a u + b v + c + d u^2 + e uv + f v^2` after substituting
-/// u = k s + m, v = k t + m (pixel addresses s, t).
-fn to_pixels(q: [f64; 6], k: f64, m: f64) -> [f64; 6] {
-    let [a, b, c, d, e, f] = q;
-    [
-        a * k + 2.0 * d * k * m + e * k * m,
-        b * k + 2.0 * f * k * m + e * k * m,
-        c + (a + b) * m + (d + e + f) * m * m,
-        d * k * k,
-        e * k * k,
-        f * k * k,
-    ]
-}
-
 /// The hemisphere mix of `polygons` quads on a board of `cfg`, generated from `seed`.
 pub fn hemisphere_mix(
     cfg: &RendererConfig,
@@ -145,7 +131,7 @@ pub fn hemisphere_mix(
         bits: depth.bits,
     };
     let quantise = |q: [f64; 6], polygon| {
-        QeeExpr::quantise(to_pixels(q, k, m), format)
+        QeeExpr::quantise(substitute_affine(q, k, m), format)
             .map_err(|source| WorkloadError::Quantise { polygon, source })
     };
 
@@ -287,7 +273,7 @@ mod tests {
     fn substitution_matches_direct_evaluation() {
         let q = [0.3, -0.7, 0.11, 0.5, -0.25, 0.9];
         let (k, m) = (1.0 / 64.0, (0.5 - 64.0) / 64.0);
-        let p = to_pixels(q, k, m);
+        let p = substitute_affine(q, k, m);
         for (s, t) in [(0.0, 0.0), (10.0, 100.0), (127.0, 63.0)] {
             let (u, v) = (k * s + m, k * t + m);
             let direct = q[0] * u + q[1] * v + q[2] + q[3] * u * u + q[4] * u * v + q[5] * v * v;

@@ -14,6 +14,7 @@
 //! only a few significant bits (section 6.2).
 
 use pxpl5_config::FixedFormat;
+use pxpl5_renderer::qee::substitute_affine;
 use pxpl5_renderer::{Bit, Cmp, Command, Field, LogicOp, QeeExpr, Window};
 
 pub type V3 = [f64; 3];
@@ -172,20 +173,6 @@ pub fn quantise_for_sign(c: [f64; 6], f: FixedFormat) -> Option<QeeExpr> {
     QeeExpr::quantise(c.map(|x| x * k), f).ok()
 }
 
-/// Coefficients `[A, B, C, D, E, F]` of `a u + b v + c + d u^2 + e uv + f v^2` after substituting
-/// u = k s + m, v = k t + m.
-pub fn to_pixels(q: [f64; 6], k: f64, m: f64) -> [f64; 6] {
-    let [a, b, c, d, e, f] = q;
-    [
-        a * k + 2.0 * d * k * m + e * k * m,
-        b * k + 2.0 * f * k * m + e * k * m,
-        c + (a + b) * m + (d + e + f) * m * m,
-        d * k * k,
-        e * k * k,
-        f * k * k,
-    ]
-}
-
 /// Why a receiver is not drawn in a view (each is charged to the GP and counted).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Cull {
@@ -197,6 +184,24 @@ pub enum Cull {
     OutsideFace,
     /// A coefficient does not fit the QEE format.
     Unrepresentable,
+}
+
+/// A receiver's plane n'.x = d' in the shooter's frame, or why the GP culls it: wholly below the
+/// horizon, its plane through the shooter (d' = 0: F = 0 and depth undefined), or facing away
+/// (the shooter must be on its front side, d' < 0).
+fn receiver_plane(verts: &[V3]) -> Result<(V3, f64), Cull> {
+    let normal = normalise(cross(sub(verts[1], verts[0]), sub(verts[2], verts[0])));
+    let d = dot(normal, verts[0]);
+    if verts.iter().all(|v| v[2] <= 0.0) {
+        return Err(Cull::BelowHorizon);
+    }
+    if d.abs() < 1e-9 {
+        return Err(Cull::Coplanar);
+    }
+    if d > 0.0 {
+        return Err(Cull::BackFacing);
+    }
+    Ok((normal, d))
 }
 
 /// The Renderer commands that draw one receiver (vertices already in the shooter's frame) on a
@@ -216,21 +221,11 @@ pub fn hemisphere_polygon(
             .fold([0.0; 3], |a, v| [a[0] + v[0], a[1] + v[1], a[2] + v[2]]),
         1.0 / m as f64,
     );
-    let normal = normalise(cross(sub(verts[1], verts[0]), sub(verts[2], verts[0])));
-    // The plane n'.x = d'; the shooter (origin) must be on the front side: d' < 0.
-    let d = dot(normal, verts[0]);
-    if verts.iter().all(|v| v[2] <= 0.0) {
-        return Err(Cull::BelowHorizon);
-    }
-    if d.abs() < 1e-9 {
-        return Err(Cull::Coplanar);
-    }
-    if d > 0.0 {
-        return Err(Cull::BackFacing);
-    }
+    let (normal, d) = receiver_plane(verts)?;
     let (k, mo) = (2.0 / f64::from(n), (1.0 - f64::from(n)) / f64::from(n));
-    let sign =
-        |q: [f64; 6]| quantise_for_sign(to_pixels(q, k, mo), format).ok_or(Cull::Unrepresentable);
+    let sign = |q: [f64; 6]| {
+        quantise_for_sign(substitute_affine(q, k, mo), format).ok_or(Cull::Unrepresentable)
+    };
     let window = |e: QeeExpr| e.sign_window((0, 0), n, n);
     let mut out = vec![Command::Logic {
         dst: Bit::Enable,
@@ -342,7 +337,7 @@ pub fn hemisphere_polygon(
     let (a, b, c) = (normal[0] / d, normal[1] / d, normal[2] / d);
     let depth_scale = f64::from(DEPTH_FRAC as i32 - format.frac_bits as i32).exp2();
     if depth == HemisphereDepth::StoredW {
-        let lin = to_pixels([a, b, 0.0, 0.0, 0.0, 0.0].map(|x| x * depth_scale), k, mo);
+        let lin = substitute_affine([a, b, 0.0, 0.0, 0.0, 0.0].map(|x| x * depth_scale), k, mo);
         let lin = QeeExpr::quantise(lin, format).map_err(|_| Cull::Unrepresentable)?;
         let kc = (c * f64::from(K_FRAC).exp2()).round();
         // NaN or too large for a 32-bit constant.
@@ -393,7 +388,7 @@ pub fn hemisphere_polygon(
         return Ok(out);
     }
     // The seed's Taylor option: w ~ 1 - (u^2 + v^2) / 2.
-    let gamma = to_pixels(
+    let gamma = substitute_affine(
         [a, b, c, -c / 2.0, 0.0, -c / 2.0].map(|x| x * depth_scale),
         k,
         mo,
@@ -467,7 +462,7 @@ pub fn view_setup(
         // Every pixel that overlaps the unit disk: its centre within RIM of the origin.
         let (k, m) = (2.0 / f64::from(n), (1.0 - f64::from(n)) / f64::from(n));
         let r = rim_radius(n as usize);
-        to_pixels([0.0, 0.0, r * r, -1.0, 0.0, -1.0], k, m)
+        substitute_affine([0.0, 0.0, r * r, -1.0, 0.0, -1.0], k, m)
     } else {
         // Rows below row0 + rows: (row0 + rows - 0.5) - t >= 0.
         [0.0, -1.0, f64::from(origin.1 + rows) - 0.5, 0.0, 0.0, 0.0]
@@ -658,17 +653,7 @@ pub fn hemicube_polygon(
     f: &ViewFields,
     format: FixedFormat,
 ) -> Result<Vec<Command>, Cull> {
-    let normal = normalise(cross(sub(verts[1], verts[0]), sub(verts[2], verts[0])));
-    let d = dot(normal, verts[0]);
-    if verts.iter().all(|v| v[2] <= 0.0) {
-        return Err(Cull::BelowHorizon);
-    }
-    if d.abs() < 1e-9 {
-        return Err(Cull::Coplanar);
-    }
-    if d > 0.0 {
-        return Err(Cull::BackFacing);
-    }
+    let (normal, d) = receiver_plane(verts)?;
     let (r, u, fw) = face.axes();
     let mut poly: Vec<V3> = verts
         .iter()
@@ -744,7 +729,7 @@ pub fn hemicube_polygon(
     let (a, b, c) = (nf[0] / d, nf[1] / d, nf[2] / d);
     let (k, m) = (1.0 / half, 0.5 / half - 1.0);
     let depth_scale = f64::from(DEPTH_FRAC as i32 - format.frac_bits as i32).exp2();
-    let lin = to_pixels([a, b, c, 0.0, 0.0, 0.0].map(|x| x * depth_scale), k, m);
+    let lin = substitute_affine([a, b, c, 0.0, 0.0, 0.0].map(|x| x * depth_scale), k, m);
     let depth = QeeExpr::quantise(lin, format).map_err(|_| Cull::Unrepresentable)?;
     push_depth_and_id(&mut out, depth, id, f);
     Ok(out)
