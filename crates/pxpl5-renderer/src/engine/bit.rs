@@ -82,17 +82,26 @@ impl PixelEngine for BitEngine {
     fn qee(&mut self, s: &Streams, window: Window, sink: QeeSink, active: &[u32]) {
         let cols = self.column_planes(s);
         let cycles = window.delivered_bits();
+        // The cross stage's stream (E y) x = (E y) x0 + (E y) i for column i of a 64-pixel group
+        // starting at x0: its planes of (E y) i are the same for every group of a row, so they
+        // are built once per row, and (E y) x0 enters with the row stream (the same integer sum,
+        // so the same bits).
         let mut cross = [0u64; 64];
+        let mut cross_row = usize::MAX;
         for &w in active {
             let w = w as usize;
             let (py, px0) = self.geometry.word_origin(w);
             let col = &cols[px0 / 64];
-            let row = s.row[py] as u64;
+            let mut row = s.row[py] as u64;
             if s.cross {
-                for (i, v) in cross.iter_mut().enumerate() {
-                    *v = s.cross_at(px0 + i, py) as u64;
+                if cross_row != py {
+                    for (i, v) in cross.iter_mut().enumerate() {
+                        *v = (s.e_row[py] * i as i64) as u64;
+                    }
+                    transpose64(&mut cross);
+                    cross_row = py;
                 }
-                transpose64(&mut cross);
+                row = row.wrapping_add((s.e_row[py] * (s.origin_x + px0 as i64)) as u64);
             }
             let en = self.regs.enable[w];
             // Carries of the pixels' two stream adders and of the ALU.
