@@ -21,7 +21,7 @@ use pxpl5_renderer::Fidelity;
 
 use crate::UserError;
 use crate::config_cmd;
-use crate::run::{png_bytes, probe_writable, trace_setup, write_atomic};
+use crate::run::{TraceArgs, png_bytes, probe_writable, write_atomic};
 
 /// Options of `pxpl5 radiosity`.
 #[derive(Args, Clone, Debug)]
@@ -71,16 +71,8 @@ pub struct RadiosityArgs {
     /// Renderer fidelity level.
     #[arg(long, default_value = "word", value_parser = ["bit", "word"])]
     pub fidelity: String,
-    /// Write a Chrome trace of simulated time per method to FILE (with both methods, the method's
-    /// name is inserted before the extension: t.hemisphere.json, t.hemicube.json).
-    #[arg(long)]
-    pub trace: Option<PathBuf>,
-    /// Write a VCD per method to FILE (named as for --trace).
-    #[arg(long)]
-    pub vcd: Option<PathBuf>,
-    /// Limit --trace and --vcd to a window of simulated time, e.g. 0..2ms.
-    #[arg(long, value_name = "START..END")]
-    pub trace_window: Option<String>,
+    #[command(flatten)]
+    pub traces: TraceArgs,
     /// Write the item (ID) buffers of these shots (0-based, comma-separated) as PNGs:
     /// DIR/items-METHOD-shotK-VIEW.png, one colour per patch.
     #[arg(long, value_delimiter = ',')]
@@ -172,22 +164,8 @@ fn run_method(
         }
     }
     let several = args.method == "both";
-    if let Some(path) = &args.trace {
-        let mut bytes = Vec::new();
-        result
-            .recorder
-            .write_chrome(&mut bytes)
-            .map_err(UserError::from)?;
-        write_atomic(&per_method(path, method, several), &bytes)?;
-    }
-    if let Some(path) = &args.vcd {
-        let mut bytes = Vec::new();
-        result
-            .recorder
-            .write_vcd(&mut bytes)
-            .map_err(UserError::from)?;
-        write_atomic(&per_method(path, method, several), &bytes)?;
-    }
+    args.traces
+        .write(&result.recorder, |p| per_method(p, method, several))?;
     Ok(Measured {
         method,
         stats: result.stats,
@@ -238,10 +216,6 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
         "hemicube" => vec![Method::Hemicube],
         _ => vec![Method::Hemisphere, Method::Hemicube],
     };
-    let window = trace_setup(
-        args.trace_window.as_deref(),
-        [args.trace.as_deref(), args.vcd.as_deref()],
-    )?;
     let mut runs = Vec::new();
     for m in methods {
         eprintln!(
@@ -250,10 +224,7 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
             patches.len(),
             args.shots
         );
-        let recorder = Recorder::new(
-            args.trace.as_ref().map(|_| window),
-            args.vcd.as_ref().map(|_| window),
-        );
+        let recorder = args.traces.recorder()?;
         runs.push(run_method(&cfg, &patches, args, m, fidelity, recorder)?);
     }
 

@@ -39,15 +39,8 @@ pub struct RunArgs {
     /// Output directory (created if needed).
     #[arg(long, default_value = "out/polygons")]
     pub out: PathBuf,
-    /// Write a Chrome trace (JSON, opens in Perfetto) of simulated time to FILE.
-    #[arg(long)]
-    pub trace: Option<PathBuf>,
-    /// Write a VCD (GTKWave, Surfer) of simulated time to FILE.
-    #[arg(long)]
-    pub vcd: Option<PathBuf>,
-    /// Limit --trace and --vcd to a window of simulated time, e.g. 0..2ms or 1.5us..3us.
-    #[arg(long, value_name = "START..END")]
-    pub trace_window: Option<String>,
+    #[command(flatten)]
+    pub traces: TraceArgs,
     /// Renderer fidelity level: bit or word (identical results and cycles).
     #[arg(long, default_value = "word", value_parser = ["bit", "word"])]
     pub fidelity: String,
@@ -76,16 +69,9 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
         ))
     })?;
     probe_writable(&args.out)?;
-    let window = trace_setup(
-        args.trace_window.as_deref(),
-        [args.trace.as_deref(), args.vcd.as_deref()],
-    )?;
+    let recorder = args.traces.recorder()?;
 
     let program = Polygons::new(scene);
-    let recorder = Recorder::new(
-        args.trace.as_ref().map(|_| window),
-        args.vcd.as_ref().map(|_| window),
-    );
     let options = RunOptions { fidelity, max_time };
     let t0 = Instant::now();
     let machine = Machine::new(&cfg, &program, options, recorder).map_err(UserError::from)?;
@@ -101,22 +87,7 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
         pxpl5_config::show(&cfg).as_bytes(),
     )?;
     write_atomic(&args.out.join("frame.png"), &png_bytes(&result.frame)?)?;
-    if let Some(path) = &args.trace {
-        let mut bytes = Vec::new();
-        result
-            .recorder
-            .write_chrome(&mut bytes)
-            .map_err(UserError::from)?;
-        write_atomic(path, &bytes)?;
-    }
-    if let Some(path) = &args.vcd {
-        let mut bytes = Vec::new();
-        result
-            .recorder
-            .write_vcd(&mut bytes)
-            .map_err(UserError::from)?;
-        write_atomic(path, &bytes)?;
-    }
+    args.traces.write(&result.recorder, |p| p.to_path_buf())?;
 
     print!("{}", stats.table());
     let triangles = program.scene().triangles.len();
@@ -141,24 +112,63 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
     Ok(())
 }
 
-/// The window of `--trace-window` (all of time without it), after checking that the files of
-/// `--trace` and `--vcd` can be written: both fail before any simulation.
-pub fn trace_setup(
-    window: Option<&str>,
-    files: [Option<&Path>; 2],
-) -> Result<TraceWindow, UserError> {
-    let window = match window {
-        Some(w) => TraceWindow::parse(w).map_err(|e| UserError(format!("--trace-window: {e}")))?,
-        None => TraceWindow::all(),
-    };
-    for f in files.into_iter().flatten() {
-        let dir = f
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        probe_writable(dir)?;
+/// The trace options every simulating subcommand takes.
+#[derive(Args, Clone, Debug)]
+pub struct TraceArgs {
+    /// Write a Chrome trace (JSON, opens in Perfetto) of simulated time to FILE. When a command
+    /// runs several machines (radiosity --method both), each run's name goes before the
+    /// extension: t.hemisphere.json, t.hemicube.json.
+    #[arg(long)]
+    pub trace: Option<PathBuf>,
+    /// Write a VCD (GTKWave, Surfer) of simulated time to FILE (named as for --trace).
+    #[arg(long)]
+    pub vcd: Option<PathBuf>,
+    /// Limit --trace and --vcd to a window of simulated time, e.g. 0..2ms or 1.5us..3us.
+    #[arg(long, value_name = "START..END")]
+    pub trace_window: Option<String>,
+}
+
+impl TraceArgs {
+    /// The recorder of one run, after checking the window and that the trace files can be
+    /// written: both fail before any simulation.
+    pub fn recorder(&self) -> Result<Recorder, UserError> {
+        let window = match &self.trace_window {
+            Some(w) => {
+                TraceWindow::parse(w).map_err(|e| UserError(format!("--trace-window: {e}")))?
+            }
+            None => TraceWindow::all(),
+        };
+        for f in [&self.trace, &self.vcd].into_iter().flatten() {
+            let dir = f
+                .parent()
+                .filter(|p| !p.as_os_str().is_empty())
+                .unwrap_or(Path::new("."));
+            probe_writable(dir)?;
+        }
+        Ok(Recorder::new(
+            self.trace.as_ref().map(|_| window),
+            self.vcd.as_ref().map(|_| window),
+        ))
     }
-    Ok(window)
+
+    /// Write a finished run's traces, each to `name(path given)`.
+    pub fn write(
+        &self,
+        recorder: &Recorder,
+        name: impl Fn(&Path) -> PathBuf,
+    ) -> Result<(), UserError> {
+        if let Some(path) = &self.trace {
+            let mut bytes = Vec::new();
+            recorder.write_chrome(&mut bytes).map_err(UserError::from)?;
+            write_atomic(&name(path), &bytes)?;
+        }
+        if let Some(path) = &self.vcd {
+            let mut bytes = Vec::new();
+            recorder.write_vcd(&mut bytes).map_err(UserError::from)?;
+            write_atomic(&name(path), &bytes)?;
+        }
+        Ok(())
+    }
 }
 
 /// Fail early, with the path, if `dir` cannot take a file.
