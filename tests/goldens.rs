@@ -82,9 +82,10 @@ fn polygons_golden(config_file: &str) -> String {
     let root = workspace_root();
     let cfg = pxpl5_config::load_file(&root.join("machine-configs").join(config_file))
         .expect("shipped configs are valid");
-    let scene =
-        pxpl5_config::scene::load_triangle_scene(&root.join("programs/polygons/scenes/small.ron"))
-            .expect("the small scene is valid");
+    let scene = pxpl5_polygons::scene::load_triangle_scene(
+        &root.join("programs/polygons/scenes/small.ron"),
+    )
+    .expect("the small scene is valid");
     let program = pxpl5_polygons::Polygons::new(scene);
     let result = Machine::new(&cfg, &program, RunOptions::default(), Recorder::default())
         .expect("builds")

@@ -10,11 +10,12 @@ use std::time::Instant;
 
 use clap::Args;
 use pxpl5_config::MachineConfig;
-use pxpl5_config::radiosity_scene::RadiosityScene;
-use pxpl5_config::scene::{Triangle, TriangleScene};
+use pxpl5_geom::DVec3;
 use pxpl5_machine::{Machine, Recorder, RunOptions, RunStats};
+use pxpl5_polygons::scene::{Camera, Triangle, TriangleScene};
 use pxpl5_radiosity::mesh::{Patch, mesh};
 use pxpl5_radiosity::program::{FormFactorProgram, FormFactorResult, RadiosityProgram, Solution};
+use pxpl5_radiosity::scene::RadiosityScene;
 use pxpl5_radiosity::shot::{FfOptions, Method};
 use pxpl5_radiosity::views::{EdgeRule, HemisphereDepth};
 use pxpl5_renderer::Fidelity;
@@ -201,9 +202,7 @@ fn phases(stats: &RunStats) -> BTreeMap<String, f64> {
 pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
     let cfg = config_cmd::load(args.config.as_deref())?;
     let scene: RadiosityScene = match &args.scene {
-        Some(p) => {
-            pxpl5_config::radiosity_scene::load_radiosity_scene(p).map_err(config_cmd::report)?
-        }
+        Some(p) => pxpl5_radiosity::scene::load_radiosity_scene(p).map_err(config_cmd::report)?,
         None => pxpl5_radiosity::scenes::cornell_box(),
     };
     let fidelity: Fidelity = args.fidelity.parse()?;
@@ -371,7 +370,7 @@ fn render(
     cfg: &MachineConfig,
     patches: &[Patch],
     s: &Solution,
-    camera: pxpl5_config::scene::Camera,
+    camera: Camera,
 ) -> Result<pxpl5_machine::Frame, UserError> {
     let area: f64 = patches.iter().map(|p| p.area).sum();
     let mut rho = [0.0; 3];
@@ -395,7 +394,7 @@ fn render(
         })
         .collect();
     // Vertex radiosity: mean over the patches of the same surface sharing the vertex.
-    let key = |surface: usize, v: [f64; 3]| {
+    let key = |surface: usize, v: DVec3| {
         (
             surface,
             (v[0] * 1e3).round() as i64,
@@ -478,7 +477,7 @@ pub struct FormFactorArgs {
     pub config: Option<PathBuf>,
 }
 
-fn parse_v3(what: &str, s: &str) -> Result<[f64; 3], UserError> {
+fn parse_v3(what: &str, s: &str) -> Result<DVec3, UserError> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     let bad = || UserError(format!("{what}: `{s}` is not three finite numbers X,Y,Z"));
     if parts.len() != 3 {
@@ -491,16 +490,16 @@ fn parse_v3(what: &str, s: &str) -> Result<[f64; 3], UserError> {
             return Err(bad());
         }
     }
-    Ok(v)
+    Ok(DVec3::from_array(v))
 }
 
 pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
     let point = parse_v3("--point", &args.point)?;
     let normal = parse_v3("--normal", &args.normal)?;
-    if normal == [0.0; 3] {
+    if normal == DVec3::ZERO {
         return Err(UserError("--normal: must not be zero".into()));
     }
-    let polygon: Vec<[f64; 3]> = args
+    let polygon: Vec<DVec3> = args
         .polygon
         .split(';')
         .filter(|s| !s.trim().is_empty())
@@ -513,7 +512,7 @@ pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
             polygon.len()
         )));
     }
-    let nn = pxpl5_radiosity::views::normalise(normal);
+    let nn = normal.normalize();
     let exact = pxpl5_radiosity::exact::point_to_polygon(point, nn, &polygon);
     let method = match args.method.as_str() {
         "exact" => {

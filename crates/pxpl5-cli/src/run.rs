@@ -53,7 +53,7 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
     let cfg = config_cmd::load(args.config.as_deref())?;
     let scene = match (&args.scene, args.triangles) {
         (Some(path), _) => {
-            pxpl5_config::scene::load_triangle_scene(path).map_err(config_cmd::report)?
+            pxpl5_polygons::scene::load_triangle_scene(path).map_err(config_cmd::report)?
         }
         (None, Some(n)) => scenes::random_scene(n, args.seed, 3.0),
         (None, None) => scenes::builtin_scene(),

@@ -1,6 +1,7 @@
-//! Errors of loading a machine config: I/O, encoding, RON syntax and type errors (with file, line,
-//! column and the offending line), and semantic errors (every problem found, each with its dotted
-//! field path).
+//! Errors of loading a RON file of the project (a machine config, or a program's scene): I/O,
+//! encoding, RON syntax and type errors (with file, line, column and the offending line), and
+//! semantic errors (every problem found, each with its dotted field path). Every report names the
+//! kind of file ([`FileKind`]), so a missing scene does not read as a missing machine config.
 //!
 //! Every variant's plain `Display` is self-sufficient and one problem per line, in the
 //! `file:line:col: message` form editors and `grep` understand, because the CLI and the tests match
@@ -14,13 +15,35 @@ use miette::{Diagnostic, NamedSource, SourceSpan};
 /// Longest stretch of a source line quoted in a `Display`; a garbage file may be one huge line.
 const MAX_QUOTED_CHARS: usize = 120;
 
-/// Everything that can go wrong between a path and a valid [`crate::MachineConfig`].
+/// What a RON file holds: the machine config, or the scene of one of the programs. It names the
+/// file in error reports.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FileKind {
+    MachineConfig,
+    /// A triangle scene of the polygon program.
+    TriangleScene,
+    /// A scene of the radiosity program.
+    RadiosityScene,
+}
+
+impl fmt::Display for FileKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            FileKind::MachineConfig => "machine config",
+            FileKind::TriangleScene => "triangle scene",
+            FileKind::RadiosityScene => "radiosity scene",
+        })
+    }
+}
+
+/// Everything that can go wrong between a path and a valid [`crate::MachineConfig`] or scene.
 #[derive(Debug, thiserror::Error, Diagnostic)]
 pub enum ConfigError {
     /// The file could not be read.
-    #[error("{path}: cannot read machine config: {source}")]
+    #[error("{path}: cannot read {kind}: {source}")]
     #[diagnostic(code(pxpl5_config::io))]
     Io {
+        kind: FileKind,
         path: String,
         #[source]
         source: std::io::Error,
@@ -33,9 +56,10 @@ pub enum ConfigError {
     )]
     #[diagnostic(
         code(pxpl5_config::encoding),
-        help("machine configs are RON text files and must be saved as UTF-8")
+        help("{kind} files are RON text and must be saved as UTF-8")
     )]
     NotUtf8 {
+        kind: FileKind,
         path: String,
         line: usize,
         col: usize,
@@ -50,7 +74,7 @@ pub enum ConfigError {
     Syntax(Box<SyntaxError>),
 
     /// The config parsed but breaks one or more limits; all of them are listed.
-    #[error("{}", semantic_display(.file, .errors))]
+    #[error("{}", semantic_display(*.kind, .file, .errors))]
     #[diagnostic(
         code(pxpl5_config::semantic),
         help(
@@ -59,6 +83,7 @@ pub enum ConfigError {
         )
     )]
     Semantic {
+        kind: FileKind,
         file: String,
         errors: Vec<SemanticError>,
     },
@@ -113,10 +138,10 @@ impl fmt::Display for SemanticError {
 
 impl std::error::Error for SemanticError {}
 
-fn semantic_display(file: &str, errors: &[SemanticError]) -> String {
+fn semantic_display(kind: FileKind, file: &str, errors: &[SemanticError]) -> String {
     if errors.is_empty() {
         // Not produced by this crate, but a hand-built value must still say something.
-        return format!("{file}: invalid machine config");
+        return format!("{file}: invalid {kind}");
     }
     errors
         .iter()
@@ -127,7 +152,7 @@ fn semantic_display(file: &str, errors: &[SemanticError]) -> String {
 
 impl ConfigError {
     /// The error for a file whose bytes are not UTF-8 (`bytes` is the whole file).
-    pub(crate) fn not_utf8(path: &str, bytes: &[u8], e: Utf8Error) -> Self {
+    pub(crate) fn not_utf8(kind: FileKind, path: &str, bytes: &[u8], e: Utf8Error) -> Self {
         let offset = e.valid_up_to();
         // Everything before `offset` is valid UTF-8, so the position can be counted in chars.
         let valid = std::str::from_utf8(&bytes[..offset]).unwrap_or_default();
@@ -138,6 +163,7 @@ impl ConfigError {
             .chars()
             .count();
         ConfigError::NotUtf8 {
+            kind,
             path: path.to_string(),
             line,
             col,

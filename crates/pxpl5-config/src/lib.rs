@@ -1,8 +1,9 @@
 //! The machine configuration of the Pixel-Planes 5 simulator.
 //!
-//! This is the only crate of the workspace that holds serde types: every other crate takes a
-//! [`MachineConfig`] (or one of its sections) as plain Rust data, so the file format can change
-//! here without touching the simulator.
+//! The simulator's core crates take a [`MachineConfig`] (or one of its sections) as plain Rust
+//! data, so the file format can change here without touching the simulator. The programs own
+//! their scene formats and load them through this crate's RON loader ([`read_text`],
+//! [`parse_checked`]), so every file's errors are reported alike, naming the kind of file.
 //!
 //! Configs are [RON](https://docs.rs/ron) files in `machine-configs/`. The structural fields
 //! (the config's `name` and the counts of GPs, ring channels and Renderers) are required in every
@@ -20,8 +21,6 @@
 mod error;
 pub mod provenance;
 // The schema's docs tag fields as `[paper]`, `[seed]`, ...: provenance tags, not links.
-pub mod radiosity_scene;
-pub mod scene;
 #[allow(rustdoc::broken_intra_doc_links)]
 mod schema;
 mod validate;
@@ -30,7 +29,7 @@ use std::path::Path;
 
 use sha2::{Digest, Sha256};
 
-pub use error::{ConfigError, SemanticError, SyntaxError};
+pub use error::{ConfigError, FileKind, SemanticError, SyntaxError};
 pub use provenance::{PROVENANCE, Provenance, Tag};
 pub use schema::*;
 pub use validate::validate;
@@ -60,27 +59,34 @@ pub fn default_config() -> MachineConfig {
 /// The file's path (as given) names the source in every error. A file that is not UTF-8 is an
 /// error ([`ConfigError::NotUtf8`]) that points at the first invalid byte.
 pub fn load_file(path: &Path) -> Result<MachineConfig, ConfigError> {
-    let (shown, text) = read_text(path)?;
+    let (shown, text) = read_text(FileKind::MachineConfig, path)?;
     parse_str(&shown, &text)
 }
 
-/// The text of a file of this crate's formats, and its path as given (it names the source in
-/// every error); a file that is not UTF-8 is an error pointing at the first invalid byte.
-pub(crate) fn read_text(path: &Path) -> Result<(String, String), ConfigError> {
+/// The text of a RON file of kind `kind`, and its path as given (it names the source in every
+/// error); a file that is not UTF-8 is an error pointing at the first invalid byte.
+pub fn read_text(kind: FileKind, path: &Path) -> Result<(String, String), ConfigError> {
     let shown = path.display().to_string();
     let bytes = std::fs::read(path).map_err(|source| ConfigError::Io {
+        kind,
         path: shown.clone(),
         source,
     })?;
     match String::from_utf8(bytes) {
         Ok(text) => Ok((shown, text)),
-        Err(e) => Err(ConfigError::not_utf8(&shown, e.as_bytes(), e.utf8_error())),
+        Err(e) => Err(ConfigError::not_utf8(
+            kind,
+            &shown,
+            e.as_bytes(),
+            e.utf8_error(),
+        )),
     }
 }
 
-/// Parse RON text into `T` and run `check` on it: syntax and type errors with file, line and
-/// column, semantic errors with their field paths, all named by `file_name`.
-pub(crate) fn parse_checked<T: serde::de::DeserializeOwned>(
+/// Parse RON text of kind `kind` into `T` and run `check` on it: syntax and type errors with
+/// file, line and column, semantic errors with their field paths, all named by `file_name`.
+pub fn parse_checked<T: serde::de::DeserializeOwned>(
+    kind: FileKind,
     file_name: &str,
     text: &str,
     check: impl FnOnce(&T) -> Result<(), Vec<SemanticError>>,
@@ -89,6 +95,7 @@ pub(crate) fn parse_checked<T: serde::de::DeserializeOwned>(
         .from_str(text)
         .map_err(|e| ConfigError::syntax(file_name, text, &e))?;
     check(&value).map_err(|errors| ConfigError::Semantic {
+        kind,
         file: file_name.to_string(),
         errors,
     })?;
@@ -97,13 +104,14 @@ pub(crate) fn parse_checked<T: serde::de::DeserializeOwned>(
 
 /// Parses and validates a machine config held in memory; `file_name` names it in errors.
 pub fn parse_str(file_name: &str, text: &str) -> Result<MachineConfig, ConfigError> {
-    parse_checked(file_name, text, validate)
+    parse_checked(FileKind::MachineConfig, file_name, text, validate)
 }
 
 /// Runs [`validate`] and wraps its findings in a [`ConfigError::Semantic`] naming `origin` (a file
 /// name, or e.g. `"command line"` for a config changed after loading).
 pub fn check(origin: &str, cfg: &MachineConfig) -> Result<(), ConfigError> {
     validate(cfg).map_err(|errors| ConfigError::Semantic {
+        kind: FileKind::MachineConfig,
         file: origin.to_string(),
         errors,
     })

@@ -8,36 +8,27 @@
 //! rounding error of a coefficient by 1280 and push constant terms past the QEE's 13 integer bits.
 
 use pxpl5_config::FixedFormat;
-use pxpl5_config::scene::{Camera, TriangleScene};
+use pxpl5_geom::{DVec3, vec3};
 use pxpl5_renderer::{QeeExpr, Window};
 
+use crate::scene::{Camera, TriangleScene};
+
+/// A screen-space triple: (x, y, depth) of a vertex, or its (r, g, b).
 pub type V3 = [f64; 3];
 
-fn sub(a: V3, b: V3) -> V3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: V3, b: V3) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-fn cross(a: V3, b: V3) -> V3 {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn normalise(a: V3) -> V3 {
-    let n = dot(a, a).sqrt();
-    [a[0] / n, a[1] / n, a[2] / n]
+/// `a` divided by its length (divided, not multiplied by the reciprocal as glam's `normalize`:
+/// the rounding the polygon goldens were made with).
+fn unit(a: DVec3) -> DVec3 {
+    a / a.length()
 }
 
 /// The camera as an orthonormal frame and a projection onto a `width` x `height` screen.
 #[derive(Clone, Debug)]
 pub struct View {
-    eye: V3,
-    right: V3,
-    up: V3,
-    back: V3,
+    eye: DVec3,
+    right: DVec3,
+    up: DVec3,
+    back: DVec3,
     /// Pixels per unit of (x / depth) on screen.
     focal: f64,
     near: f64,
@@ -58,16 +49,15 @@ pub struct ScreenTriangle {
 
 impl View {
     pub fn new(c: &Camera, width: u32, height: u32) -> View {
-        let t = |v: (f64, f64, f64)| [v.0, v.1, v.2];
-        let forward = normalise(sub(t(c.target), t(c.eye)));
-        let right = normalise(cross(forward, t(c.up)));
-        let up = cross(right, forward);
+        let forward = unit(vec3(c.target) - vec3(c.eye));
+        let right = unit(forward.cross(vec3(c.up)));
+        let up = right.cross(forward);
         let half = (c.fov_y_degrees.to_radians() / 2.0).tan();
         View {
-            eye: t(c.eye),
+            eye: vec3(c.eye),
             right,
             up,
-            back: [-forward[0], -forward[1], -forward[2]],
+            back: -forward,
             focal: f64::from(height) / 2.0 / half,
             near: c.near,
             far: c.far,
@@ -77,9 +67,9 @@ impl View {
     }
 
     /// Camera-space position: (right, up, distance in front).
-    fn camera(&self, p: V3) -> V3 {
-        let d = sub(p, self.eye);
-        [dot(d, self.right), dot(d, self.up), -dot(d, self.back)]
+    fn camera(&self, p: DVec3) -> V3 {
+        let d = p - self.eye;
+        [d.dot(self.right), d.dot(self.up), -d.dot(self.back)]
     }
 
     /// Transform, clip against the near and far planes, and project one scene triangle; 0, 1 or 2
@@ -91,28 +81,23 @@ impl View {
                 let v = tri.vertices[k];
                 let c = tri.colours[k];
                 (
-                    self.camera([v.0, v.1, v.2]),
+                    self.camera(vec3(v)),
                     [c.0 * 255.0, c.1 * 255.0, c.2 * 255.0],
                 )
             })
             .collect();
-        // Sutherland-Hodgman against depth >= near and depth <= far.
+        // Against depth >= near and depth <= far.
         for (limit, keep_above) in [(self.near, true), (self.far, false)] {
-            let inside = |p: &V3| {
-                if keep_above {
-                    p[2] >= limit
-                } else {
-                    p[2] <= limit
-                }
-            };
-            let mut out = Vec::new();
-            for i in 0..poly.len() {
-                let (a, ca) = poly[i];
-                let (b, cb) = poly[(i + 1) % poly.len()];
-                if inside(&a) {
-                    out.push((a, ca));
-                }
-                if inside(&a) != inside(&b) {
+            poly = pxpl5_geom::clip::clip(
+                &poly,
+                |(p, _)| {
+                    if keep_above {
+                        p[2] >= limit
+                    } else {
+                        p[2] <= limit
+                    }
+                },
+                |&(a, ca), &(b, cb)| {
                     let t = (limit - a[2]) / (b[2] - a[2]);
                     let lerp = |x: V3, y: V3| {
                         [
@@ -121,10 +106,9 @@ impl View {
                             x[2] + t * (y[2] - x[2]),
                         ]
                     };
-                    out.push((lerp(a, b), lerp(ca, cb)));
-                }
-            }
-            poly = out;
+                    (lerp(a, b), lerp(ca, cb))
+                },
+            );
         }
         if poly.len() < 3 {
             return Vec::new();
@@ -214,9 +198,12 @@ pub const DEPTH_SHIFT: u32 = 6;
 /// the value at the centroid.
 fn plane(p: [[f64; 3]; 3], max_slope: f64) -> [f64; 3] {
     let [a, b, c] = p;
-    let (e1, e2) = (sub(b, a), sub(c, a));
-    let n = cross(e1, e2);
-    let (mut ga, mut gb) = (-n[0] / n[2], -n[1] / n[2]);
+    let (e1, e2) = (
+        DVec3::from_array(b) - DVec3::from_array(a),
+        DVec3::from_array(c) - DVec3::from_array(a),
+    );
+    let n = e1.cross(e2);
+    let (mut ga, mut gb) = (-n.x / n.z, -n.y / n.z);
     ga = ga.clamp(-max_slope, max_slope);
     gb = gb.clamp(-max_slope, max_slope);
     let cx = (a[0] + b[0] + c[0]) / 3.0;

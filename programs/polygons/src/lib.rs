@@ -19,9 +19,10 @@
 
 pub mod geometry;
 pub mod reference;
+pub mod scene;
 pub mod scenes;
 
-use pxpl5_config::scene::TriangleScene;
+use crate::scene::TriangleScene;
 use pxpl5_machine::{Gp, GpFuture, Op, Payload, Program, ProgramError, Unit};
 use pxpl5_renderer::{Bit, Cmp, Command, Field, LogicOp, PixelLayout, Rect, Window};
 

@@ -4,8 +4,8 @@
 //! triangle order, with the same sign, depth and colour rules as the Renderer commands. The
 //! simulated machine's frame must equal it pixel for pixel.
 
+use crate::scene::TriangleScene;
 use pxpl5_config::MachineConfig;
-use pxpl5_config::scene::TriangleScene;
 use pxpl5_machine::Frame;
 use pxpl5_renderer::Window;
 

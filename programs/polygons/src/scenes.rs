@@ -3,22 +3,9 @@
 //! Both are deterministic: a 64-bit LCG seeded by the caller, and only arithmetic that is
 //! correctly rounded on every host.
 
-use pxpl5_config::scene::{Camera, Triangle, TriangleScene};
+use pxpl5_geom::rng::Lcg;
 
-struct Lcg(u64);
-
-impl Lcg {
-    fn unit(&mut self) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
-}
+use crate::scene::{Camera, Triangle, TriangleScene, check_triangle_scene};
 
 /// The camera both scenes use: 10 units back from the origin, looking at it.
 pub fn default_camera() -> Camera {
@@ -35,7 +22,7 @@ pub fn default_camera() -> Camera {
 /// `n` random triangles in a 12 x 10 x 8 box around the origin, each with a random size up to
 /// `max_edge` and random vertex colours, from `seed`.
 pub fn random_scene(n: usize, seed: u64, max_edge: f64) -> TriangleScene {
-    let mut rng = Lcg(seed ^ 0x5DEE_CE66_D1CE_5EED);
+    let mut rng = Lcg::new(seed ^ 0x5DEE_CE66_D1CE_5EED);
     let mut triangles = Vec::with_capacity(n);
     while triangles.len() < n {
         let c = (
@@ -63,7 +50,7 @@ pub fn random_scene(n: usize, seed: u64, max_edge: f64) -> TriangleScene {
             triangles: vec![t.clone()],
         };
         // Skip the rare degenerate draw so that every generated scene is valid.
-        if pxpl5_config::scene::check_triangle_scene(&s).is_ok() {
+        if check_triangle_scene(&s).is_ok() {
             triangles.push(t);
         }
     }

@@ -1,4 +1,5 @@
-//! Progressive radiosity on the simulated Pixel-Planes 5: scenes and meshing ([`scenes`],
+//! Progressive radiosity on the simulated Pixel-Planes 5: the scene format ([`scene`]), scenes and
+//! meshing ([`scenes`],
 //! [`mesh`]), exact point-to-polygon form factors ([`exact`]), the hemisphere and hemicube views
 //! as GP code ([`views`]), one shot's form factors on the machine ([`shot`]), the programs the
 //! machine runs ([`program`]), and host reference solutions ([`solver`]).
@@ -6,6 +7,7 @@
 pub mod exact;
 pub mod mesh;
 pub mod program;
+pub mod scene;
 pub mod scenes;
 pub mod shot;
 pub mod solver;

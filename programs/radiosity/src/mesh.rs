@@ -7,9 +7,9 @@
 //! patch indices can be compared between runs.
 
 use pxpl5_config::SemanticError;
-use pxpl5_config::radiosity_scene::{
-    RadiosityScene, Surface, best_fit_plane, check_radiosity_scene,
-};
+use pxpl5_geom::DVec3;
+
+use crate::scene::{RadiosityScene, Surface, check_radiosity_scene};
 
 /// Most patches [`mesh`] makes for a whole scene: the solver keeps per-patch state and a form
 /// factor row per shot, so a typo in the patch size (millimetres for metres) must be an error, not
@@ -22,11 +22,11 @@ pub struct Patch {
     /// Index of the surface in [`RadiosityScene::surfaces`] it was cut from.
     pub surface: usize,
     /// Vertices, in the surface's orientation (counter-clockwise seen from the front).
-    pub vertices: Vec<[f64; 3]>,
+    pub vertices: Vec<DVec3>,
     /// Area centroid.
-    pub centre: [f64; 3],
+    pub centre: DVec3,
     /// Unit normal of the surface's (best-fit) plane, on the front side.
-    pub normal: [f64; 3],
+    pub normal: DVec3,
     /// Area (projected onto the surface's plane, which is the exact area for planar input).
     pub area: f64,
     /// The surface's reflectance per band (R, G, B).
@@ -67,38 +67,6 @@ fn list(errors: &[SemanticError]) -> String {
         .join("\n")
 }
 
-pub(crate) fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-pub(crate) fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-
-pub(crate) fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
-
-pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-pub(crate) fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
-}
-
-fn arr(v: (f64, f64, f64)) -> [f64; 3] {
-    [v.0, v.1, v.2]
-}
-
 /// Number of pieces an edge of `length` is cut into so that each is at most `size`.
 fn pieces(length: f64, size: f64) -> f64 {
     // Shave a relative 1e-12 so that an edge that is a whole multiple of the size (1.0 / 0.25,
@@ -117,15 +85,15 @@ enum Plan {
 
 /// A triangle `a, b, c` (in the surface's orientation) to be cut into `k` x `k` similar ones.
 struct SubdividedTriangle {
-    a: [f64; 3],
-    b: [f64; 3],
-    c: [f64; 3],
+    a: DVec3,
+    b: DVec3,
+    c: DVec3,
     k: usize,
 }
 
 /// The plan for one surface and its patch count (as f64: it may be astronomically large).
-fn plan(v: &[[f64; 3]], size: f64) -> (Plan, f64) {
-    let len = |a: usize, b: usize| norm(sub(v[b], v[a]));
+fn plan(v: &[DVec3], size: f64) -> (Plan, f64) {
+    let len = |a: usize, b: usize| (v[b] - v[a]).length();
     if v.len() == 4 {
         let n = pieces(len(0, 1).max(len(3, 2)), size);
         let m = pieces(len(1, 2).max(len(0, 3)), size);
@@ -140,7 +108,7 @@ fn plan(v: &[[f64; 3]], size: f64) -> (Plan, f64) {
     let mut count = 0.0;
     for j in 1..v.len() - 1 {
         let (a, b, c) = (v[0], v[j], v[j + 1]);
-        let longest = norm(sub(b, a)).max(norm(sub(c, b))).max(norm(sub(a, c)));
+        let longest = (b - a).length().max((c - b).length()).max((a - c).length());
         let k = pieces(longest, size);
         count += k * k;
         triangles.push(SubdividedTriangle {
@@ -167,7 +135,7 @@ pub fn mesh(scene: &RadiosityScene, patch_size: f64) -> Result<Vec<Patch>, MeshE
     let mut plans = Vec::with_capacity(scene.surfaces.len());
     let mut total = 0.0;
     for (i, surface) in scene.surfaces.iter().enumerate() {
-        let vertices: Vec<[f64; 3]> = surface.vertices.iter().map(|&v| arr(v)).collect();
+        let vertices = surface.points();
         let (plan, count) = plan(&vertices, patch_size);
         total += count;
         // `total` may be infinite (a patch size of 1e-300), never NaN: `pieces` is at least 1.
@@ -189,10 +157,10 @@ pub fn mesh(scene: &RadiosityScene, patch_size: f64) -> Result<Vec<Patch>, MeshE
 }
 
 /// Appends the patches of surface `index` following `plan`.
-fn cut_surface(index: usize, surface: &Surface, v: &[[f64; 3]], plan: Plan, out: &mut Vec<Patch>) {
+fn cut_surface(index: usize, surface: &Surface, v: &[DVec3], plan: Plan, out: &mut Vec<Patch>) {
     // The scene was checked, so the plane exists; the fallback only keeps this panic-free.
-    let normal = best_fit_plane(&surface.vertices).map_or([0.0, 0.0, 1.0], |p| arr(p.normal));
-    let mut push = |vertices: Vec<[f64; 3]>| {
+    let normal = surface.plane().map_or(DVec3::Z, |p| p.normal);
+    let mut push = |vertices: Vec<DVec3>| {
         let (area, centre) = area_centroid(&vertices, normal);
         out.push(Patch {
             surface: index,
@@ -200,8 +168,8 @@ fn cut_surface(index: usize, surface: &Surface, v: &[[f64; 3]], plan: Plan, out:
             centre,
             normal,
             area,
-            reflectance: arr(surface.reflectance),
-            emission: arr(surface.emission),
+            reflectance: surface.reflectance.into(),
+            emission: surface.emission.into(),
         });
     };
     match plan {
@@ -211,9 +179,9 @@ fn cut_surface(index: usize, surface: &Surface, v: &[[f64; 3]], plan: Plan, out:
             // the cells tile the quad exactly.
             let at = |i: usize, j: usize| {
                 let (s, t) = (i as f64 / n as f64, j as f64 / m as f64);
-                let bottom = add(scale(v[0], 1.0 - s), scale(v[1], s));
-                let top = add(scale(v[3], 1.0 - s), scale(v[2], s));
-                add(scale(bottom, 1.0 - t), scale(top, t))
+                let bottom = v[0] * (1.0 - s) + v[1] * s;
+                let top = v[3] * (1.0 - s) + v[2] * s;
+                bottom * (1.0 - t) + top * t
             };
             for j in 0..m {
                 for i in 0..n {
@@ -225,11 +193,9 @@ fn cut_surface(index: usize, surface: &Surface, v: &[[f64; 3]], plan: Plan, out:
             for SubdividedTriangle { a, b, c, k } in triangles {
                 // Lattice points a + (i/k)(b - a) + (j/k)(c - a), i + j <= k; "upright" cells keep
                 // the orientation of (a, b, c), and so do the "inverted" ones as listed.
-                let (e1, e2) = (sub(b, a), sub(c, a));
+                let (e1, e2) = (b - a, c - a);
                 let kf = k as f64;
-                let at = |i: usize, j: usize| {
-                    add(a, add(scale(e1, i as f64 / kf), scale(e2, j as f64 / kf)))
-                };
+                let at = |i: usize, j: usize| a + (e1 * (i as f64 / kf) + e2 * (j as f64 / kf));
                 for j in 0..k {
                     for i in 0..k - j {
                         push(vec![at(i, j), at(i + 1, j), at(i, j + 1)]);
@@ -245,25 +211,25 @@ fn cut_surface(index: usize, surface: &Surface, v: &[[f64; 3]], plan: Plan, out:
 
 /// Area (projected onto the plane of unit normal `normal`) and area centroid of a convex polygon,
 /// from a fan of triangles at vertex 0.
-pub fn area_centroid(vertices: &[[f64; 3]], normal: [f64; 3]) -> (f64, [f64; 3]) {
+pub fn area_centroid(vertices: &[DVec3], normal: DVec3) -> (f64, DVec3) {
     let Some(&first) = vertices.first() else {
-        return (0.0, [0.0; 3]);
+        return (0.0, DVec3::ZERO);
     };
     let mut area = 0.0;
-    let mut moment = [0.0; 3];
+    let mut moment = DVec3::ZERO;
     for k in 1..vertices.len().saturating_sub(1) {
         let (b, c) = (vertices[k], vertices[k + 1]);
-        let a2 = dot(normal, cross(sub(b, first), sub(c, first)));
+        let a2 = normal.dot((b - first).cross(c - first));
         area += a2;
-        let centre = scale(add(first, add(b, c)), 1.0 / 3.0);
-        moment = add(moment, scale(centre, a2));
+        let centre = (first + (b + c)) * (1.0 / 3.0);
+        moment += centre * a2;
     }
     if area > 0.0 {
-        (area / 2.0, scale(moment, 1.0 / area))
+        (area / 2.0, moment * (1.0 / area))
     } else {
         // Degenerate: fall back to the vertex mean so the centre is still a point of the polygon.
-        let mean = vertices.iter().fold([0.0; 3], |s, &v| add(s, v));
-        (0.0, scale(mean, 1.0 / vertices.len() as f64))
+        let mean = vertices.iter().fold(DVec3::ZERO, |s, &v| s + v);
+        (0.0, mean * (1.0 / vertices.len() as f64))
     }
 }
 
@@ -307,9 +273,9 @@ mod tests {
         let p = mesh(&s, 0.5).unwrap();
         assert_eq!(p.len(), 6 * 2);
         assert!(close(total_area(&p), 3.0, 1e-12));
-        assert!(p.iter().all(|p| p.normal == [0.0, 0.0, 1.0]));
+        assert!(p.iter().all(|p| p.normal == DVec3::new(0.0, 0.0, 1.0)));
         assert!(p.iter().all(|p| close(p.area, 0.25, 1e-12)));
-        assert_eq!(p[0].centre, [0.25, 0.25, 2.0]);
+        assert_eq!(p[0].centre, DVec3::new(0.25, 0.25, 2.0));
         assert_eq!(p[0].reflectance, [0.25, 0.5, 0.75]);
         assert_eq!(p[0].emission, [1.0, 2.0, 3.0]);
         // A patch size larger than the surface leaves it whole.
@@ -335,7 +301,7 @@ mod tests {
         assert_eq!(p.len(), 25);
         assert!(close(total_area(&p), 1.0, 1e-12));
         assert!(p.iter().all(|p| close(p.area, 1.0 / 25.0, 1e-9)));
-        assert!(p.iter().all(|p| p.normal == [1.0, 0.0, 0.0]));
+        assert!(p.iter().all(|p| p.normal == DVec3::X));
         // A regular pentagon of circumradius 1 around (1, 2, 3), tilted.
         let pentagon: Vec<(f64, f64, f64)> = (0..5)
             .map(|k| {
@@ -346,12 +312,12 @@ mod tests {
         let p = mesh(&one(&pentagon), 0.1).unwrap();
         let exact = 2.5 * (std::f64::consts::TAU / 5.0).sin();
         assert!(close(total_area(&p), exact, 1e-12), "{}", total_area(&p));
-        let n = [0.0, -0.8, 0.6];
-        assert!(p.iter().all(|p| norm(sub(p.normal, n)) < 1e-12));
+        let n = DVec3::new(0.0, -0.8, 0.6);
+        assert!(p.iter().all(|p| (p.normal - n).length() < 1e-12));
         // Every patch centre lies in the pentagon's plane.
         assert!(
             p.iter()
-                .all(|p| dot(sub(p.centre, [1.0, 2.0, 3.0]), n).abs() < 1e-12)
+                .all(|p| (p.centre - DVec3::new(1.0, 2.0, 3.0)).dot(n).abs() < 1e-12)
         );
     }
 
@@ -363,7 +329,7 @@ mod tests {
         for (k, patch) in p.iter().enumerate() {
             assert_eq!(patch.surface, k / 16);
             // Inward: the box's centre is in front of every patch.
-            assert!(dot(sub([0.5; 3], patch.centre), patch.normal) > 0.0);
+            assert!((DVec3::splat(0.5) - patch.centre).dot(patch.normal) > 0.0);
         }
         let lit: f64 = p
             .iter()

@@ -13,12 +13,13 @@ use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::rc::Rc;
 
+use pxpl5_geom::DVec3;
+use pxpl5_geom::plane::bounding_diagonal;
 use pxpl5_machine::{Gp, GpFuture, Op, Payload, Program, ProgramError, Unit};
 use pxpl5_sim::Tick;
 
 use crate::mesh::Patch;
 use crate::shot::{CullCounts, FfOptions, GpLocal, ItemBuffers, Receiver, Shooter, shoot};
-use crate::views::V3;
 
 const TAG_PARTIAL: u64 = 10;
 const TAG_PROPOSE: u64 = 11;
@@ -103,9 +104,9 @@ pub struct FormFactorResult {
 
 /// The form factors from a point to polygons, on the machine.
 pub struct FormFactorProgram {
-    pub point: V3,
-    pub normal: V3,
-    pub polygons: Vec<Vec<V3>>,
+    pub point: DVec3,
+    pub normal: DVec3,
+    pub polygons: Vec<Vec<DVec3>>,
     pub options: FfOptions,
     pub result: Rc<RefCell<FormFactorResult>>,
 }
@@ -115,7 +116,7 @@ impl FormFactorProgram {
         let mut m: f64 = 0.0;
         for p in &self.polygons {
             for v in p {
-                m = m.max(crate::views::norm(crate::views::sub(*v, self.point)));
+                m = m.max((*v - self.point).length());
             }
         }
         m.max(f64::MIN_POSITIVE)
@@ -137,11 +138,8 @@ impl Program for FormFactorProgram {
             .map(|(i, poly)| {
                 // A lone polygon is seen from whichever side faces the point.
                 let mut vertices = poly.clone();
-                let nrm = crate::views::cross(
-                    crate::views::sub(poly[1], poly[0]),
-                    crate::views::sub(poly[2], poly[0]),
-                );
-                if crate::views::dot(nrm, crate::views::sub(self.point, poly[0])) < 0.0 {
+                let nrm = (poly[1] - poly[0]).cross(poly[2] - poly[0]);
+                if nrm.dot(self.point - poly[0]) < 0.0 {
                     vertices.reverse();
                 }
                 Receiver {
@@ -231,17 +229,8 @@ pub struct RadiosityProgram {
 
 impl RadiosityProgram {
     pub fn new(patches: Vec<Patch>, options: FfOptions, shots: usize, threshold: f64) -> Self {
-        let mut lo = [f64::MAX; 3];
-        let mut hi = [f64::MIN; 3];
-        for p in &patches {
-            for v in &p.vertices {
-                for k in 0..3 {
-                    lo[k] = lo[k].min(v[k]);
-                    hi[k] = hi[k].max(v[k]);
-                }
-            }
-        }
-        let scale = crate::views::norm(crate::views::sub(hi, lo)).max(f64::MIN_POSITIVE);
+        let all: Vec<DVec3> = patches.iter().flat_map(|p| p.vertices.clone()).collect();
+        let scale = bounding_diagonal(&all).max(f64::MIN_POSITIVE);
         let solution = Solution {
             radiosity: patches.iter().map(|p| p.emission).collect(),
             unshot: patches.iter().map(|p| p.emission).collect(),

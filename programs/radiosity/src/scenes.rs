@@ -2,11 +2,11 @@
 //! `programs/radiosity/scenes/*.ron` so the program runs without files, and closed boxes of any
 //! size built in code for tests at other scales.
 //!
-//! The scene format (and its checks) lives in [`pxpl5_config::radiosity_scene`].
+//! The scene format (and its checks) lives in [`crate::scene`].
 
-pub use pxpl5_config::radiosity_scene::{RadiosityScene, Surface};
+pub use crate::scene::{RadiosityScene, Surface};
 
-use pxpl5_config::radiosity_scene::parse_radiosity_scene;
+use crate::scene::parse_radiosity_scene;
 
 /// The text of `scenes/cornell-box.ron`: the Cornell box in millimetres, open at z = 0.
 pub const CORNELL_BOX: &str = include_str!("../scenes/cornell-box.ron");
@@ -37,7 +37,7 @@ pub fn empty_box() -> RadiosityScene {
 ///
 /// Same surfaces, names and vertex order as `scenes/empty-box.ron`, scaled; the result is not
 /// checked here (a `size` that is zero or not finite, or a reflectance outside [0, 1), gives a
-/// scene that [`pxpl5_config::radiosity_scene::check_radiosity_scene`] rejects).
+/// scene that [`crate::scene::check_radiosity_scene`] rejects).
 pub fn closed_box(size: f64, reflectance: f64) -> RadiosityScene {
     let s = size;
     // Corner patterns with normals into the box (right-hand rule), as in empty-box.ron.

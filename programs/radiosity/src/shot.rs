@@ -11,12 +11,13 @@
 
 use std::collections::BTreeMap;
 
+use pxpl5_geom::DVec3;
 use pxpl5_machine::{Gp, Op, Payload, ProgramError, Unit};
 use pxpl5_renderer::{Command, Rect, readback};
 
 use crate::views::{
-    Cull, EdgeRule, Face, Frame, HemisphereDepth, V3, ViewFields, hemicube_delta_ff,
-    hemicube_polygon, hemisphere_delta_ff, hemisphere_polygon, view_setup, w_table,
+    Cull, EdgeRule, Face, Frame, HemisphereDepth, ViewFields, hemicube_delta_ff, hemicube_polygon,
+    hemisphere_delta_ff, hemisphere_polygon, view_setup, w_table,
 };
 
 /// How form factors are computed.
@@ -68,7 +69,7 @@ impl Default for FfOptions {
 #[derive(Clone, Debug)]
 pub struct Receiver {
     pub id: u16,
-    pub vertices: Vec<V3>,
+    pub vertices: Vec<DVec3>,
 }
 
 /// One view: where it is drawn and how its pixels weigh.
@@ -248,8 +249,8 @@ impl GpLocal {
 /// Where a shot comes from.
 #[derive(Clone, Copy, Debug)]
 pub struct Shooter {
-    pub point: V3,
-    pub normal: V3,
+    pub point: DVec3,
+    pub normal: DVec3,
     /// The scene's size: frame units per scene unit are 1/scale (the same on every GP).
     pub scale: f64,
 }
@@ -305,7 +306,7 @@ pub async fn shoot(
     let mut partial = vec![Partial::new(); shooters.len()];
 
     // The receivers in each shooter's frame (one transform per vertex per shooter).
-    let mut local: Vec<Vec<Vec<V3>>> = Vec::new();
+    let mut local: Vec<Vec<Vec<DVec3>>> = Vec::new();
     for shooter in shooters {
         gp.compute(
             Op::VertexTransform,
@@ -591,16 +592,16 @@ fn band_rows(rows: u32, gps: u32, band: u32) -> (u32, u32) {
 
 /// The cheap test of `skip_faces`: false only if every vertex is outside the same plane of the
 /// face's frustum.
-fn may_touch(verts: &[V3], face: Face) -> bool {
+fn may_touch(verts: &[DVec3], face: Face) -> bool {
     let (r, u, f) = face.axes();
-    let planes: Vec<Box<dyn Fn(V3) -> f64>> = vec![
-        Box::new(move |p: V3| crate::views::dot(p, f)),
-        Box::new(move |p: V3| crate::views::dot(p, f) - crate::views::dot(p, r)),
-        Box::new(move |p: V3| crate::views::dot(p, f) + crate::views::dot(p, r)),
-        Box::new(move |p: V3| crate::views::dot(p, f) - crate::views::dot(p, u)),
-        Box::new(move |p: V3| match face {
-            Face::Top => crate::views::dot(p, f) + crate::views::dot(p, u),
-            Face::Side(_) => crate::views::dot(p, u),
+    let planes: Vec<Box<dyn Fn(DVec3) -> f64>> = vec![
+        Box::new(move |p: DVec3| p.dot(f)),
+        Box::new(move |p: DVec3| p.dot(f) - p.dot(r)),
+        Box::new(move |p: DVec3| p.dot(f) + p.dot(r)),
+        Box::new(move |p: DVec3| p.dot(f) - p.dot(u)),
+        Box::new(move |p: DVec3| match face {
+            Face::Top => p.dot(f) + p.dot(u),
+            Face::Side(_) => p.dot(u),
         }),
     ];
     planes.iter().all(|pl| verts.iter().any(|v| pl(*v) >= 0.0))

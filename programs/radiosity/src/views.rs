@@ -14,41 +14,19 @@
 //! only a few significant bits (section 6.2).
 
 use pxpl5_config::FixedFormat;
+use pxpl5_geom::DVec3;
+use pxpl5_geom::clip::clip_to_half_space;
+use pxpl5_geom::grid::Grid;
 use pxpl5_renderer::qee::substitute_affine;
 use pxpl5_renderer::{Bit, Cmp, Command, Field, LogicOp, QeeExpr, Window};
-
-pub type V3 = [f64; 3];
-
-pub fn sub(a: V3, b: V3) -> V3 {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-pub fn dot(a: V3, b: V3) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-pub fn cross(a: V3, b: V3) -> V3 {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-pub fn scale3(a: V3, s: f64) -> V3 {
-    [a[0] * s, a[1] * s, a[2] * s]
-}
-pub fn norm(a: V3) -> f64 {
-    dot(a, a).sqrt()
-}
-pub fn normalise(a: V3) -> V3 {
-    scale3(a, 1.0 / norm(a))
-}
 
 /// The shooter's frame: a point, and orthonormal tangents t1, t2 with the normal n.
 #[derive(Clone, Copy, Debug)]
 pub struct Frame {
-    pub origin: V3,
-    pub t1: V3,
-    pub t2: V3,
-    pub n: V3,
+    pub origin: DVec3,
+    pub t1: DVec3,
+    pub t2: DVec3,
+    pub n: DVec3,
     /// Scene units per frame unit.
     pub scale: f64,
 }
@@ -56,15 +34,11 @@ pub struct Frame {
 impl Frame {
     /// A frame at `p` with normal `n`; the tangents are fixed by `n` alone (no random rotation,
     /// so runs are reproducible).
-    pub fn new(p: V3, n: V3, scale: f64) -> Frame {
-        let n = normalise(n);
-        let helper = if n[0].abs() < 0.6 {
-            [1.0, 0.0, 0.0]
-        } else {
-            [0.0, 1.0, 0.0]
-        };
-        let t1 = normalise(cross(helper, n));
-        let t2 = cross(n, t1);
+    pub fn new(p: DVec3, n: DVec3, scale: f64) -> Frame {
+        let n = n.normalize();
+        let helper = if n.x.abs() < 0.6 { DVec3::X } else { DVec3::Y };
+        let t1 = helper.cross(n).normalize();
+        let t2 = n.cross(t1);
         Frame {
             origin: p,
             t1,
@@ -75,18 +49,18 @@ impl Frame {
     }
 
     /// A scene point in the frame.
-    pub fn local(&self, v: V3) -> V3 {
-        let d = sub(v, self.origin);
-        [
-            dot(d, self.t1) / self.scale,
-            dot(d, self.t2) / self.scale,
-            dot(d, self.n) / self.scale,
-        ]
+    pub fn local(&self, v: DVec3) -> DVec3 {
+        let d = v - self.origin;
+        DVec3::new(
+            d.dot(self.t1) / self.scale,
+            d.dot(self.t2) / self.scale,
+            d.dot(self.n) / self.scale,
+        )
     }
 
     /// A scene direction in the frame (not scaled).
-    pub fn direction(&self, d: V3) -> V3 {
-        [dot(d, self.t1), dot(d, self.t2), dot(d, self.n)]
+    pub fn direction(&self, d: DVec3) -> DVec3 {
+        DVec3::new(d.dot(self.t1), d.dot(self.t2), d.dot(self.n))
     }
 }
 
@@ -189,10 +163,10 @@ pub enum Cull {
 /// A receiver's plane n'.x = d' in the shooter's frame, or why the GP culls it: wholly below the
 /// horizon, its plane through the shooter (d' = 0: F = 0 and depth undefined), or facing away
 /// (the shooter must be on its front side, d' < 0).
-fn receiver_plane(verts: &[V3]) -> Result<(V3, f64), Cull> {
-    let normal = normalise(cross(sub(verts[1], verts[0]), sub(verts[2], verts[0])));
-    let d = dot(normal, verts[0]);
-    if verts.iter().all(|v| v[2] <= 0.0) {
+fn receiver_plane(verts: &[DVec3]) -> Result<(DVec3, f64), Cull> {
+    let normal = (verts[1] - verts[0]).cross(verts[2] - verts[0]).normalize();
+    let d = normal.dot(verts[0]);
+    if verts.iter().all(|v| v.z <= 0.0) {
         return Err(Cull::BelowHorizon);
     }
     if d.abs() < 1e-9 {
@@ -207,7 +181,7 @@ fn receiver_plane(verts: &[V3]) -> Result<(V3, f64), Cull> {
 /// The Renderer commands that draw one receiver (vertices already in the shooter's frame) on a
 /// hemisphere of `n` pixels across, or why it is culled.
 pub fn hemisphere_polygon(
-    verts: &[V3],
+    verts: &[DVec3],
     id: u16,
     n: u32,
     (rule, depth): (EdgeRule, HemisphereDepth),
@@ -215,14 +189,9 @@ pub fn hemisphere_polygon(
     format: FixedFormat,
 ) -> Result<Vec<Command>, Cull> {
     let m = verts.len();
-    let centroid = scale3(
-        verts
-            .iter()
-            .fold([0.0; 3], |a, v| [a[0] + v[0], a[1] + v[1], a[2] + v[2]]),
-        1.0 / m as f64,
-    );
+    let centroid = verts.iter().fold(DVec3::ZERO, |a, &v| a + v) * (1.0 / m as f64);
     let (normal, d) = receiver_plane(verts)?;
-    let (k, mo) = (2.0 / f64::from(n), (1.0 - f64::from(n)) / f64::from(n));
+    let (k, mo) = Grid::new(n).affine();
     let sign = |q: [f64; 6]| {
         quantise_for_sign(substitute_affine(q, k, mo), format).ok_or(Cull::Unrepresentable)
     };
@@ -245,23 +214,23 @@ pub fn hemisphere_polygon(
     };
     for i in 0..m {
         let (p1, p2) = (verts[i], verts[(i + 1) % m]);
-        let mut pl = normalise(cross(p1, p2));
-        if !pl.iter().all(|x| x.is_finite()) {
+        let mut pl = p1.cross(p2).normalize();
+        if !pl.is_finite() {
             return Err(Cull::Coplanar);
         }
         // An edge in the horizon plane (both ends at w = 0): L is identically 0 and the edge
         // adds no constraint on a polygon above the horizon (its plane is the horizon).
-        if pl[0].abs() + pl[1].abs() < 1e-12 {
+        if pl.x.abs() + pl.y.abs() < 1e-12 {
             continue;
         }
         let quad =
             |a: f64, b: f64, c: f64| [0.0, 0.0, -c * c, a * a + c * c, 2.0 * a * b, b * b + c * c];
         match rule {
             EdgeRule::SignOfC => {
-                if dot(pl, centroid) < 0.0 {
-                    pl = scale3(pl, -1.0);
+                if pl.dot(centroid) < 0.0 {
+                    pl = -pl;
                 }
-                let [a, b, c] = pl;
+                let [a, b, c] = pl.to_array();
                 push_sign(&mut out, [a, b, 0.0, 0.0, 0.0, 0.0], f.pos)?;
                 if c == 0.0 {
                     out.push(and_enable(f.pos));
@@ -283,15 +252,15 @@ pub fn hemisphere_polygon(
                 out.push(and_enable(f.t));
             }
             EdgeRule::Seed => {
-                if pl[2] > 0.0 {
-                    pl = scale3(pl, -1.0);
+                if pl.z > 0.0 {
+                    pl = -pl;
                 }
-                let [a, b, c] = pl;
+                let [a, b, c] = pl.to_array();
                 push_sign(&mut out, [a, b, 0.0, 0.0, 0.0, 0.0], f.pos)?;
                 if c == 0.0 {
                     // The seed assumes C < 0; an edge plane through the pole has only its line.
                     let third = verts[(i + 2) % m];
-                    if a * third[0] + b * third[1] < 0.0 {
+                    if a * third.x + b * third.y < 0.0 {
                         out.push(Command::Logic {
                             dst: Bit::Enable,
                             a: Bit::Enable,
@@ -307,8 +276,8 @@ pub fn hemisphere_polygon(
                 // INSIDE = Q <= 0.
                 push_sign(&mut out, q.map(|x| -x), f.inside)?;
                 let third = verts[(i + 2) % m];
-                let rho = norm(third);
-                let (u0, v0) = (third[0] / rho, third[1] / rho);
+                let rho = third.length();
+                let (u0, v0) = (third.x / rho, third.y / rho);
                 let l0 = a * u0 + b * v0;
                 let q0 = (a * u0 + b * v0).powi(2) - c * c * (1.0 - u0 * u0 - v0 * v0);
                 let t = if l0 > 0.0 && q0 > 0.0 {
@@ -334,7 +303,7 @@ pub fn hemisphere_polygon(
         }
     }
     // Depth: 1/rho = (n'.dir) / d' = a u + b v + c w.
-    let (a, b, c) = (normal[0] / d, normal[1] / d, normal[2] / d);
+    let (a, b, c) = (normal.x / d, normal.y / d, normal.z / d);
     let depth_scale = f64::from(DEPTH_FRAC as i32 - format.frac_bits as i32).exp2();
     if depth == HemisphereDepth::StoredW {
         let lin = substitute_affine([a, b, 0.0, 0.0, 0.0, 0.0].map(|x| x * depth_scale), k, mo);
@@ -460,7 +429,7 @@ pub fn view_setup(
     ];
     let view_expr = if hemisphere {
         // Every pixel that overlaps the unit disk: its centre within RIM of the origin.
-        let (k, m) = (2.0 / f64::from(n), (1.0 - f64::from(n)) / f64::from(n));
+        let (k, m) = Grid::new(n).affine();
         let r = rim_radius(n as usize);
         substitute_affine([0.0, 0.0, r * r, -1.0, 0.0, -1.0], k, m)
     } else {
@@ -481,14 +450,11 @@ pub fn view_setup(
 /// across: round(sqrt(1 - u^2 - v^2) * 2^W_FRAC) at each pixel centre, 0 outside the disk; row by
 /// row, as `WritePixels` takes it.
 pub fn w_table(n: u32, origin: (u32, u32), width: u32, rows: u32) -> Vec<u64> {
-    let h = 2.0 / f64::from(n);
+    let grid = Grid::new(n);
     let mut out = Vec::with_capacity((width * rows) as usize);
     for t in origin.1..origin.1 + rows {
         for s in origin.0..origin.0 + width {
-            let (u, v) = (
-                (f64::from(s) + 0.5) * h - 1.0,
-                (f64::from(t) + 0.5) * h - 1.0,
-            );
+            let (u, v) = (grid.centre(s), grid.centre(t));
             let w2 = 1.0 - u * u - v * v;
             out.push(if w2 > 0.0 {
                 (w2.sqrt() * f64::from(W_FRAC).exp2()).round() as u64
@@ -518,16 +484,17 @@ pub fn rim_radius(n: usize) -> f64 {
 /// others). Otherwise the seed's rule: the surface integral of 1 / sqrt(1 - x^2 - y^2) over the
 /// pixel times cos(theta) at its centre, over pi.
 pub fn hemisphere_delta_ff(n: usize, exact: bool) -> Vec<f64> {
-    let h = 2.0 / n as f64;
+    let grid = Grid::new(n as u32);
+    let h = grid.pixel();
     let mut table = vec![0.0; n * n];
     let mut sum = 0.0;
-    for t in 0..n {
-        for s in 0..n {
-            let (u, v) = ((s as f64 + 0.5) * h - 1.0, (t as f64 + 0.5) * h - 1.0);
+    for t in 0..n as u32 {
+        for s in 0..n as u32 {
+            let (u, v) = (grid.centre(s), grid.centre(t));
             if u * u + v * v > rim_radius(n).powi(2) {
                 continue;
             }
-            let (x0, y0) = (s as f64 * h - 1.0, t as f64 * h - 1.0);
+            let (x0, y0) = (grid.edge(s), grid.edge(t));
             let corners_inside = [(0.0, 0.0), (h, 0.0), (0.0, h), (h, h)]
                 .iter()
                 .all(|(dx, dy)| (x0 + dx).powi(2) + (y0 + dy).powi(2) <= 1.0);
@@ -563,7 +530,7 @@ pub fn hemisphere_delta_ff(n: usize, exact: bool) -> Vec<f64> {
                 }
                 area * (1.0 - u * u - v * v).max(0.0).sqrt()
             };
-            table[t * n + s] = value;
+            table[t as usize * n + s as usize] = value;
             sum += value;
         }
     }
@@ -591,13 +558,13 @@ impl Face {
     ];
 
     /// (right, up, forward) axes in the shooter's frame.
-    pub fn axes(self) -> (V3, V3, V3) {
+    pub fn axes(self) -> (DVec3, DVec3, DVec3) {
         match self {
-            Face::Top => ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]),
-            Face::Side(0) => ([0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]),
-            Face::Side(1) => ([0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, 0.0, 0.0]),
-            Face::Side(2) => ([-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0]),
-            Face::Side(_) => ([1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]),
+            Face::Top => (DVec3::X, DVec3::Y, DVec3::Z),
+            Face::Side(0) => (DVec3::Y, DVec3::Z, DVec3::X),
+            Face::Side(1) => (DVec3::NEG_Y, DVec3::Z, DVec3::NEG_X),
+            Face::Side(2) => (DVec3::NEG_X, DVec3::Z, DVec3::Y),
+            Face::Side(_) => (DVec3::X, DVec3::Z, DVec3::NEG_Y),
         }
     }
 
@@ -618,35 +585,13 @@ impl Face {
     }
 }
 
-/// Clip a convex polygon (face coordinates X, Y, Z) to `plane . p >= 0` (Sutherland-Hodgman).
-fn clip(poly: &[V3], plane: [f64; 4]) -> Vec<V3> {
-    let val = |p: &V3| plane[0] * p[0] + plane[1] * p[1] + plane[2] * p[2] + plane[3];
-    let mut out = Vec::new();
-    for i in 0..poly.len() {
-        let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
-        let (va, vb) = (val(&a), val(&b));
-        if va >= 0.0 {
-            out.push(a);
-        }
-        if (va >= 0.0) != (vb >= 0.0) {
-            let t = va / (va - vb);
-            out.push([
-                a[0] + t * (b[0] - a[0]),
-                a[1] + t * (b[1] - a[1]),
-                a[2] + t * (b[2] - a[2]),
-            ]);
-        }
-    }
-    out
-}
-
 /// Near plane of the hemicube faces, in frame units (distances are at most about 1).
 pub const HEMICUBE_NEAR: f64 = 1e-4;
 
 /// The commands that draw one receiver (vertices in the shooter's frame) on hemicube face `face`
 /// of `n` pixels across, or why it is culled. `origin` is the board's QEE origin for the face.
 pub fn hemicube_polygon(
-    verts: &[V3],
+    verts: &[DVec3],
     id: u16,
     face: Face,
     n: u32,
@@ -655,37 +600,32 @@ pub fn hemicube_polygon(
 ) -> Result<Vec<Command>, Cull> {
     let (normal, d) = receiver_plane(verts)?;
     let (r, u, fw) = face.axes();
-    let mut poly: Vec<V3> = verts
+    let mut poly: Vec<DVec3> = verts
         .iter()
-        .map(|v| [dot(*v, r), dot(*v, u), dot(*v, fw)])
+        .map(|v| DVec3::new(v.dot(r), v.dot(u), v.dot(fw)))
         .collect();
     // The face's frustum: Z >= near, -Z <= X <= Z, and -Z <= Y <= Z (top) or 0 <= Y <= Z (side).
     let y_low = match face {
-        Face::Top => [0.0, 1.0, 1.0, 0.0],
-        Face::Side(_) => [0.0, 1.0, 0.0, 0.0],
+        Face::Top => (DVec3::new(0.0, 1.0, 1.0), 0.0),
+        Face::Side(_) => (DVec3::Y, 0.0),
     };
     for plane in [
-        [0.0, 0.0, 1.0, -HEMICUBE_NEAR],
-        [1.0, 0.0, 1.0, 0.0],
-        [-1.0, 0.0, 1.0, 0.0],
-        [0.0, -1.0, 1.0, 0.0],
+        (DVec3::Z, -HEMICUBE_NEAR),
+        (DVec3::new(1.0, 0.0, 1.0), 0.0),
+        (DVec3::new(-1.0, 0.0, 1.0), 0.0),
+        (DVec3::new(0.0, -1.0, 1.0), 0.0),
         y_low,
     ] {
-        poly = clip(&poly, plane);
+        poly = clip_to_half_space(&poly, plane);
         if poly.len() < 3 {
             return Err(Cull::OutsideFace);
         }
     }
     // Pixel address s = (X/Z + 1) n/2 - 0.5, t likewise (rows of a side face start at n/2).
-    let half = f64::from(n) / 2.0;
+    let grid = Grid::new(n);
     let screen: Vec<(f64, f64)> = poly
         .iter()
-        .map(|p| {
-            (
-                (p[0] / p[2] + 1.0) * half - 0.5,
-                (p[1] / p[2] + 1.0) * half - 0.5,
-            )
-        })
+        .map(|p| (grid.pixel_of(p.x / p.z), grid.pixel_of(p.y / p.z)))
         .collect();
     let area: f64 = (0..screen.len())
         .map(|i| {
@@ -725,9 +665,8 @@ pub fn hemicube_polygon(
         });
     }
     // 1/Z = (n'_x X/Z + n'_y Y/Z + n'_z) / d' in face axes; nearer = larger; X/Z = (s + 0.5)/half - 1.
-    let nf = [dot(normal, r), dot(normal, u), dot(normal, fw)];
-    let (a, b, c) = (nf[0] / d, nf[1] / d, nf[2] / d);
-    let (k, m) = (1.0 / half, 0.5 / half - 1.0);
+    let (a, b, c) = (normal.dot(r) / d, normal.dot(u) / d, normal.dot(fw) / d);
+    let (k, m) = grid.affine();
     let depth_scale = f64::from(DEPTH_FRAC as i32 - format.frac_bits as i32).exp2();
     let lin = substitute_affine([a, b, c, 0.0, 0.0, 0.0].map(|x| x * depth_scale), k, m);
     let depth = QeeExpr::quantise(lin, format).map_err(|_| Cull::Unrepresentable)?;
@@ -738,14 +677,13 @@ pub fn hemicube_polygon(
 /// Delta form factors of hemicube face `face` with an `n` x `n` top face, row-major over the
 /// face's rows, *not* normalised (the caller normalises over all five faces).
 pub fn hemicube_delta_ff(face: Face, n: usize) -> Vec<f64> {
-    let h = 2.0 / n as f64;
-    let rows = face.rows(n as u32) as usize;
-    let row0 = face.row0(n as u32) as usize;
-    let mut out = Vec::with_capacity(rows * n);
+    let grid = Grid::new(n as u32);
+    let h = grid.pixel();
+    let (rows, row0) = (face.rows(n as u32), face.row0(n as u32));
+    let mut out = Vec::with_capacity(rows as usize * n);
     for t in 0..rows {
-        for s in 0..n {
-            let x = (s as f64 + 0.5) * h - 1.0;
-            let y = ((t + row0) as f64 + 0.5) * h - 1.0;
+        for s in 0..n as u32 {
+            let (x, y) = (grid.centre(s), grid.centre(t + row0));
             let v = match face {
                 Face::Top => h * h / (std::f64::consts::PI * (x * x + y * y + 1.0).powi(2)),
                 // On a side face the screen's up axis is the normal: z = y here.

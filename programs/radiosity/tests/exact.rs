@@ -4,10 +4,11 @@
 
 use std::f64::consts::TAU;
 
+use pxpl5_geom::DVec3;
 use pxpl5_radiosity::exact::point_to_polygon;
 use pxpl5_radiosity::scenes::{closed_box, empty_box};
 
-const UP: [f64; 3] = [0.0, 0.0, 1.0];
+const UP: DVec3 = DVec3::new(0.0, 0.0, 1.0);
 
 fn rel_err(got: f64, want: f64) -> f64 {
     (got - want).abs() / want.abs()
@@ -28,14 +29,24 @@ fn perpendicular(a: f64, b: f64, c: f64) -> f64 {
 }
 
 /// The rectangle of `parallel_corner`, seen from the origin with normal +z.
-fn parallel_rectangle(a: f64, b: f64, c: f64) -> Vec<[f64; 3]> {
-    vec![[0.0, 0.0, c], [a, 0.0, c], [a, b, c], [0.0, b, c]]
+fn parallel_rectangle(a: f64, b: f64, c: f64) -> Vec<DVec3> {
+    vec![
+        DVec3::new(0.0, 0.0, c),
+        DVec3::new(a, 0.0, c),
+        DVec3::new(a, b, c),
+        DVec3::new(0.0, b, c),
+    ]
 }
 
 /// The rectangle of `perpendicular`, seen from the origin with normal +z: in the plane y = c,
 /// x from 0 to a along the shared edge, z from 0 to b.
-fn perpendicular_rectangle(a: f64, b: f64, c: f64) -> Vec<[f64; 3]> {
-    vec![[0.0, c, 0.0], [a, c, 0.0], [a, c, b], [0.0, c, b]]
+fn perpendicular_rectangle(a: f64, b: f64, c: f64) -> Vec<DVec3> {
+    vec![
+        DVec3::new(0.0, c, 0.0),
+        DVec3::new(a, c, 0.0),
+        DVec3::new(a, c, b),
+        DVec3::new(0.0, c, b),
+    ]
 }
 
 /// Deterministic pseudo-random numbers in [0, 1) (SplitMix64).
@@ -52,7 +63,7 @@ impl Rng {
     }
 
     /// A uniformly distributed unit vector (rejection from the cube).
-    fn direction(&mut self) -> [f64; 3] {
+    fn direction(&mut self) -> DVec3 {
         loop {
             let v = [
                 2.0 * self.next() - 1.0,
@@ -61,14 +72,14 @@ impl Rng {
             ];
             let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
             if len > 0.1 && len <= 1.0 {
-                return [v[0] / len, v[1] / len, v[2] / len];
+                return DVec3::new(v[0] / len, v[1] / len, v[2] / len);
             }
         }
     }
 }
 
 /// Rotation by `angle` about the unit `axis` (Rodrigues).
-fn rotate(v: [f64; 3], axis: [f64; 3], angle: f64) -> [f64; 3] {
+fn rotate(v: DVec3, axis: DVec3, angle: f64) -> DVec3 {
     let (s, c) = angle.sin_cos();
     let k = axis;
     let kxv = [
@@ -77,11 +88,11 @@ fn rotate(v: [f64; 3], axis: [f64; 3], angle: f64) -> [f64; 3] {
         k[0] * v[1] - k[1] * v[0],
     ];
     let kv = k[0] * v[0] + k[1] * v[1] + k[2] * v[2];
-    [
+    DVec3::new(
         v[0] * c + kxv[0] * s + k[0] * kv * (1.0 - c),
         v[1] * c + kxv[1] * s + k[1] * kv * (1.0 - c),
         v[2] * c + kxv[2] * s + k[2] * kv * (1.0 - c),
-    ]
+    )
 }
 
 #[test]
@@ -94,7 +105,7 @@ fn parallel_rectangle_through_a_corner() {
         (0.01, 0.02, 5.0),
         (100.0, 0.3, 7.0),
     ] {
-        let got = point_to_polygon([0.0; 3], UP, &parallel_rectangle(a, b, c));
+        let got = point_to_polygon(DVec3::ZERO, UP, &parallel_rectangle(a, b, c));
         let want = parallel_corner(a, b, c);
         assert!(rel_err(got, want) < 1e-9, "{a} {b} {c}: {got} vs {want}");
     }
@@ -103,11 +114,11 @@ fn parallel_rectangle_through_a_corner() {
 #[test]
 fn coaxial_disk_as_a_720_gon() {
     const N: usize = 720;
-    let gon = |r: f64, h: f64| -> Vec<[f64; 3]> {
+    let gon = |r: f64, h: f64| -> Vec<DVec3> {
         (0..N)
             .map(|k| {
                 let a = TAU * k as f64 / N as f64;
-                [r * a.cos(), r * a.sin(), h]
+                DVec3::new(r * a.cos(), r * a.sin(), h)
             })
             .collect()
     };
@@ -118,12 +129,12 @@ fn coaxial_disk_as_a_720_gon() {
     for (radius, h) in [(1.0, 1.0), (0.5, 2.0), (3.0, 0.2), (1.0, 10.0), (2.0, 0.01)] {
         let want = radius * radius / (radius * radius + h * h);
         // The inscribed 720-gon lacks 1.3e-5 of the disk's area: within 1e-5 absolute.
-        let inscribed = point_to_polygon([0.0; 3], UP, &gon(radius, h));
+        let inscribed = point_to_polygon(DVec3::ZERO, UP, &gon(radius, h));
         assert!(
             (inscribed - want).abs() < 1e-5 && inscribed < want,
             "R {radius} h {h}: {inscribed} vs {want}"
         );
-        let got = point_to_polygon([0.0; 3], UP, &gon(radius * equal_area, h));
+        let got = point_to_polygon(DVec3::ZERO, UP, &gon(radius * equal_area, h));
         assert!(
             rel_err(got, want) < 1e-9,
             "R {radius} h {h}: {got} vs {want}"
@@ -141,25 +152,25 @@ fn perpendicular_rectangle_sharing_an_edge() {
         (0.5, 0.01, 3.0),
         (3.0, 40.0, 0.7),
     ] {
-        let got = point_to_polygon([0.0; 3], UP, &perpendicular_rectangle(a, b, c));
+        let got = point_to_polygon(DVec3::ZERO, UP, &perpendicular_rectangle(a, b, c));
         let want = perpendicular(a, b, c);
         assert!(rel_err(got, want) < 1e-9, "{a} {b} {c}: {got} vs {want}");
     }
 }
 
 /// A generic configuration: a tilted quad seen from an off-origin point with a tilted normal.
-fn generic() -> ([f64; 3], [f64; 3], Vec<[f64; 3]>) {
-    let p = [0.3, -0.2, 0.1];
+fn generic() -> (DVec3, DVec3, Vec<DVec3>) {
+    let p = DVec3::new(0.3, -0.2, 0.1);
     let n = {
-        let v: [f64; 3] = [0.2, 0.1, 1.0];
+        let v: DVec3 = DVec3::new(0.2, 0.1, 1.0);
         let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        [v[0] / l, v[1] / l, v[2] / l]
+        DVec3::new(v[0] / l, v[1] / l, v[2] / l)
     };
     let quad = vec![
-        [-0.5, -0.4, 1.2],
-        [0.9, -0.3, 1.5],
-        [1.1, 0.8, 1.0],
-        [-0.2, 0.7, 0.9],
+        DVec3::new(-0.5, -0.4, 1.2),
+        DVec3::new(0.9, -0.3, 1.5),
+        DVec3::new(1.1, 0.8, 1.0),
+        DVec3::new(-0.2, 0.7, 0.9),
     ];
     (p, n, quad)
 }
@@ -172,7 +183,7 @@ fn scale_invariance() {
     // 1e-6 to 1e6 as asked, and beyond: the vertices are rescaled inside, so even 1e+-200 (whose
     // cross products would overflow or underflow) keeps every digit.
     for s in [1e-200, 1e-6, 1e-3, 0.1, 7.0, 1e3, 1e6, 1e200] {
-        let scaled: Vec<[f64; 3]> = quad.iter().map(|v| v.map(|c| c * s)).collect();
+        let scaled: Vec<DVec3> = quad.iter().map(|v| v.map(|c| c * s)).collect();
         let got = point_to_polygon(p.map(|c| c * s), n, &scaled);
         assert!(rel_err(got, base) < 1e-9, "scale {s}: {got} vs {base}");
     }
@@ -186,8 +197,8 @@ fn rotation_invariance() {
     for _ in 0..20 {
         let axis = rng.direction();
         let angle = TAU * rng.next();
-        let r = |v: [f64; 3]| rotate(v, axis, angle);
-        let turned: Vec<[f64; 3]> = quad.iter().map(|&v| r(v)).collect();
+        let r = |v: DVec3| rotate(v, axis, angle);
+        let turned: Vec<DVec3> = quad.iter().map(|&v| r(v)).collect();
         let got = point_to_polygon(r(p), r(n), &turned);
         assert!(
             rel_err(got, base) < 1e-9,
@@ -201,50 +212,54 @@ fn polygon_partly_below_the_horizon() {
     // A square in the plane y = 1 spanning z from -1 to 1: only its upper half is visible, and
     // by symmetry that half is two perpendicular rectangles of the closed form (a = b = c = 1).
     let square = [
-        [-1.0, 1.0, -1.0],
-        [1.0, 1.0, -1.0],
-        [1.0, 1.0, 1.0],
-        [-1.0, 1.0, 1.0],
+        DVec3::new(-1.0, 1.0, -1.0),
+        DVec3::new(1.0, 1.0, -1.0),
+        DVec3::new(1.0, 1.0, 1.0),
+        DVec3::new(-1.0, 1.0, 1.0),
     ];
     let by_hand = [
-        [-1.0, 1.0, 0.0],
-        [1.0, 1.0, 0.0],
-        [1.0, 1.0, 1.0],
-        [-1.0, 1.0, 1.0],
+        DVec3::new(-1.0, 1.0, 0.0),
+        DVec3::new(1.0, 1.0, 0.0),
+        DVec3::new(1.0, 1.0, 1.0),
+        DVec3::new(-1.0, 1.0, 1.0),
     ];
-    let got = point_to_polygon([0.0; 3], UP, &square);
-    let clipped = point_to_polygon([0.0; 3], UP, &by_hand);
+    let got = point_to_polygon(DVec3::ZERO, UP, &square);
+    let clipped = point_to_polygon(DVec3::ZERO, UP, &by_hand);
     assert!(rel_err(got, clipped) < 1e-12, "{got} vs {clipped}");
     let want = 2.0 * perpendicular(1.0, 1.0, 1.0);
     assert!(rel_err(got, want) < 1e-9, "{got} vs {want}");
 
     // A tilted triangle with one vertex below: clipped by hand at the two crossings.
-    let tri = [[0.0, 1.0, -1.0], [1.0, 1.0, 1.0], [-1.0, 2.0, 1.0]];
+    let tri = [
+        DVec3::new(0.0, 1.0, -1.0),
+        DVec3::new(1.0, 1.0, 1.0),
+        DVec3::new(-1.0, 2.0, 1.0),
+    ];
     // Edge 0-1 crosses z = 0 at its middle (0.5, 1, 0); edge 2-0 also at its middle
     // (-0.5, 1.5, 0).
     let tri_by_hand = [
-        [0.5, 1.0, 0.0],
-        [1.0, 1.0, 1.0],
-        [-1.0, 2.0, 1.0],
-        [-0.5, 1.5, 0.0],
+        DVec3::new(0.5, 1.0, 0.0),
+        DVec3::new(1.0, 1.0, 1.0),
+        DVec3::new(-1.0, 2.0, 1.0),
+        DVec3::new(-0.5, 1.5, 0.0),
     ];
-    let got = point_to_polygon([0.0; 3], UP, &tri);
-    let want = point_to_polygon([0.0; 3], UP, &tri_by_hand);
+    let got = point_to_polygon(DVec3::ZERO, UP, &tri);
+    let want = point_to_polygon(DVec3::ZERO, UP, &tri_by_hand);
     assert!(rel_err(got, want) < 1e-12, "{got} vs {want}");
     // The contour sum of the unclipped triangle is far off (the part below counts negatively):
     // the case really exercises the clip.
-    let unclipped = unclipped_contour([0.0; 3], UP, &tri);
+    let unclipped = unclipped_contour(DVec3::ZERO, UP, &tri);
     assert!(rel_err(unclipped, want) > 0.1, "{unclipped} vs {want}");
-    let unclipped = unclipped_contour([0.0; 3], UP, &square);
+    let unclipped = unclipped_contour(DVec3::ZERO, UP, &square);
     assert!(unclipped < 1e-12, "{unclipped}");
 }
 
 /// The contour formula without the horizon clip, to show what the clip fixes.
-fn unclipped_contour(p: [f64; 3], n: [f64; 3], polygon: &[[f64; 3]]) -> f64 {
+fn unclipped_contour(p: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
     let m = polygon.len();
     let mut sum = 0.0;
     for i in 0..m {
-        let r = |v: [f64; 3]| [v[0] - p[0], v[1] - p[1], v[2] - p[2]];
+        let r = |v: DVec3| [v[0] - p[0], v[1] - p[1], v[2] - p[2]];
         let (a, b) = (r(polygon[i]), r(polygon[(i + 1) % m]));
         let c = [
             a[1] * b[2] - a[2] * b[1],
@@ -263,27 +278,31 @@ fn unclipped_contour(p: [f64; 3], n: [f64; 3], polygon: &[[f64; 3]]) -> f64 {
 #[test]
 fn polygon_wholly_below_is_zero() {
     let below = parallel_rectangle(1.0, 2.0, -1.0);
-    assert_eq!(point_to_polygon([0.0; 3], UP, &below), 0.0);
+    assert_eq!(point_to_polygon(DVec3::ZERO, UP, &below), 0.0);
     // Touching the horizon with one edge and otherwise below: still nothing visible.
     let touching = [
-        [0.0, 1.0, 0.0],
-        [1.0, 1.0, 0.0],
-        [1.0, 1.0, -1.0],
-        [0.0, 1.0, -1.0],
+        DVec3::new(0.0, 1.0, 0.0),
+        DVec3::new(1.0, 1.0, 0.0),
+        DVec3::new(1.0, 1.0, -1.0),
+        DVec3::new(0.0, 1.0, -1.0),
     ];
-    assert_eq!(point_to_polygon([0.0; 3], UP, &touching), 0.0);
+    assert_eq!(point_to_polygon(DVec3::ZERO, UP, &touching), 0.0);
 }
 
 #[test]
 fn sliver_of_width_1e_minus_9() {
     for (w, b, c) in [(1e-9, 1.0, 1.0), (1e-9, 0.2, 3.0), (1e-12, 1.0, 1.0)] {
-        let got = point_to_polygon([0.0; 3], UP, &parallel_rectangle(w, b, c));
+        let got = point_to_polygon(DVec3::ZERO, UP, &parallel_rectangle(w, b, c));
         let want = parallel_corner(w, b, c);
         assert!(got.is_finite());
         assert!(rel_err(got, want) < 1e-9, "{w} {b} {c}: {got} vs {want}");
         // The same sliver as a triangle along the other axis.
-        let tri = [[0.0, 0.0, c], [b, 0.0, c], [b, w, c]];
-        let got = point_to_polygon([0.0; 3], UP, &tri);
+        let tri = [
+            DVec3::new(0.0, 0.0, c),
+            DVec3::new(b, 0.0, c),
+            DVec3::new(b, w, c),
+        ];
+        let got = point_to_polygon(DVec3::ZERO, UP, &tri);
         assert!(got.is_finite() && got > 0.0 && got < want * 1.001, "{got}");
     }
 }
@@ -292,29 +311,29 @@ fn sliver_of_width_1e_minus_9() {
 fn never_nan_for_finite_input() {
     // Points on vertices and edges, polygons through p, huge and tiny coordinates.
     let sq = [
-        [0.0, 0.0, 1.0],
-        [1.0, 0.0, 1.0],
-        [1.0, 1.0, 1.0],
-        [0.0, 1.0, 1.0],
+        DVec3::new(0.0, 0.0, 1.0),
+        DVec3::new(1.0, 0.0, 1.0),
+        DVec3::new(1.0, 1.0, 1.0),
+        DVec3::new(0.0, 1.0, 1.0),
     ];
     let mut rng = Rng(99);
-    let mut cases: Vec<([f64; 3], [f64; 3])> = vec![
-        ([0.0, 0.0, 1.0], UP),
-        ([0.0, 0.0, 1.0], [0.0, 0.0, -1.0]),
-        ([0.5, 0.0, 1.0], [0.0, 1.0, 0.0]),
-        ([0.5, 0.0, 0.0], [1.0, 0.0, 0.0]),
-        ([1e300, 0.0, 0.0], UP),
-        ([1e-300, 1e-300, 0.0], UP),
-        ([0.2, 0.3, 0.0], [1e-300, 0.0, 1e-310]),
-        ([0.2, 0.3, 0.0], [1e300, 1e300, 1e300]),
-        ([0.2, 0.3, 0.0], [0.0, 0.0, f64::MAX]),
+    let mut cases: Vec<(DVec3, DVec3)> = vec![
+        (DVec3::new(0.0, 0.0, 1.0), UP),
+        (DVec3::new(0.0, 0.0, 1.0), DVec3::new(0.0, 0.0, -1.0)),
+        (DVec3::new(0.5, 0.0, 1.0), DVec3::new(0.0, 1.0, 0.0)),
+        (DVec3::new(0.5, 0.0, 0.0), DVec3::new(1.0, 0.0, 0.0)),
+        (DVec3::new(1e300, 0.0, 0.0), UP),
+        (DVec3::new(1e-300, 1e-300, 0.0), UP),
+        (DVec3::new(0.2, 0.3, 0.0), DVec3::new(1e-300, 0.0, 1e-310)),
+        (DVec3::new(0.2, 0.3, 0.0), DVec3::new(1e300, 1e300, 1e300)),
+        (DVec3::new(0.2, 0.3, 0.0), DVec3::new(0.0, 0.0, f64::MAX)),
     ];
     for _ in 0..200 {
-        let p = [
+        let p = DVec3::new(
             3.0 * rng.next() - 1.0,
             3.0 * rng.next() - 1.0,
             3.0 * rng.next() - 1.0,
-        ];
+        );
         cases.push((p, rng.direction()));
     }
     for (p, n) in cases {
@@ -328,20 +347,28 @@ fn never_nan_for_finite_input() {
     let big = f64::MAX;
     let polygons = [
         vec![
-            [-big, -big, big],
-            [big, -big, big],
-            [big, big, big],
-            [-big, big, big],
+            DVec3::new(-big, -big, big),
+            DVec3::new(big, -big, big),
+            DVec3::new(big, big, big),
+            DVec3::new(-big, big, big),
         ],
         vec![
-            [0.0, 0.0, 1e-310],
-            [1e-310, 0.0, 1e-310],
-            [0.0, 1e-310, 1e-310],
+            DVec3::new(0.0, 0.0, 1e-310),
+            DVec3::new(1e-310, 0.0, 1e-310),
+            DVec3::new(0.0, 1e-310, 1e-310),
         ],
-        vec![[0.0, 0.0, 1e200], [1e200, 0.0, 1e200], [0.0, 1e200, 1e200]],
+        vec![
+            DVec3::new(0.0, 0.0, 1e200),
+            DVec3::new(1e200, 0.0, 1e200),
+            DVec3::new(0.0, 1e200, 1e200),
+        ],
     ];
     for polygon in &polygons {
-        for p in [[0.0; 3], [-big, 0.0, -big], [1e-320, 0.0, 0.0]] {
+        for p in [
+            DVec3::ZERO,
+            DVec3::new(-big, 0.0, -big),
+            DVec3::new(1e-320, 0.0, 0.0),
+        ] {
             let f = point_to_polygon(p, UP, polygon);
             assert!(
                 f.is_finite() && (0.0..=1.0 + 1e-12).contains(&f),
@@ -350,7 +377,7 @@ fn never_nan_for_finite_input() {
         }
     }
     // Seen from the origin, the huge square overhead fills most of the hemisphere.
-    let f = point_to_polygon([0.0; 3], UP, &polygons[0]);
+    let f = point_to_polygon(DVec3::ZERO, UP, &polygons[0]);
     assert!(
         (f - 4.0 * parallel_corner(1.0, 1.0, 1.0)).abs() < 1e-9,
         "{f}"
@@ -359,26 +386,31 @@ fn never_nan_for_finite_input() {
 
 #[test]
 fn form_factors_inside_a_closed_box_sum_to_one() {
-    let faces: Vec<Vec<[f64; 3]>> = empty_box()
+    let faces: Vec<Vec<DVec3>> = empty_box()
         .surfaces
         .iter()
-        .map(|s| s.vertices.iter().map(|&(x, y, z)| [x, y, z]).collect())
+        .map(|s| {
+            s.vertices
+                .iter()
+                .map(|&(x, y, z)| DVec3::new(x, y, z))
+                .collect()
+        })
         .collect();
     let axes = [
-        [1.0, 0.0, 0.0],
-        [-1.0, 0.0, 0.0],
-        [0.0, 1.0, 0.0],
-        [0.0, -1.0, 0.0],
-        [0.0, 0.0, 1.0],
-        [0.0, 0.0, -1.0],
+        DVec3::new(1.0, 0.0, 0.0),
+        DVec3::new(-1.0, 0.0, 0.0),
+        DVec3::new(0.0, 1.0, 0.0),
+        DVec3::new(0.0, -1.0, 0.0),
+        DVec3::new(0.0, 0.0, 1.0),
+        DVec3::new(0.0, 0.0, -1.0),
     ];
     let mut rng = Rng(2024);
     for k in 0..50 {
-        let p = [
+        let p = DVec3::new(
             0.01 + 0.98 * rng.next(),
             0.01 + 0.98 * rng.next(),
             0.01 + 0.98 * rng.next(),
-        ];
+        );
         // Every fifth point looks along an axis (whole faces behind it, side faces clipped
         // exactly at their middle); the rest in random directions.
         let n = if k % 5 == 0 {
@@ -393,7 +425,7 @@ fn form_factors_inside_a_closed_box_sum_to_one() {
     // the rest split evenly among the four sides.
     let f: Vec<f64> = faces
         .iter()
-        .map(|f| point_to_polygon([0.5; 3], [0.0, 1.0, 0.0], f))
+        .map(|f| point_to_polygon(DVec3::splat(0.5), DVec3::new(0.0, 1.0, 0.0), f))
         .collect();
     let ceiling = 4.0 * parallel_corner(0.5, 0.5, 0.5);
     assert!(rel_err(f[1], ceiling) < 1e-12, "{f:?}");
@@ -407,17 +439,22 @@ fn form_factors_inside_a_closed_box_sum_to_one() {
 fn closed_boxes_at_other_scales_sum_to_one() {
     let mut rng = Rng(5);
     for size in [1e-6, 1e-2, 1e3, 1e6] {
-        let faces: Vec<Vec<[f64; 3]>> = closed_box(size, 0.5)
+        let faces: Vec<Vec<DVec3>> = closed_box(size, 0.5)
             .surfaces
             .iter()
-            .map(|s| s.vertices.iter().map(|&(x, y, z)| [x, y, z]).collect())
+            .map(|s| {
+                s.vertices
+                    .iter()
+                    .map(|&(x, y, z)| DVec3::new(x, y, z))
+                    .collect()
+            })
             .collect();
         for _ in 0..10 {
-            let p = [
+            let p = DVec3::new(
                 size * (0.01 + 0.98 * rng.next()),
                 size * (0.01 + 0.98 * rng.next()),
                 size * (0.01 + 0.98 * rng.next()),
-            ];
+            );
             let n = rng.direction();
             let sum: f64 = faces.iter().map(|f| point_to_polygon(p, n, f)).sum();
             assert!((sum - 1.0).abs() < 1e-9, "size {size} {p:?}: {sum}");

@@ -5,12 +5,16 @@
 use std::cell::RefCell;
 use std::rc::Rc;
 
+use pxpl5_geom::DVec3;
+use pxpl5_geom::rng::Lcg;
 use pxpl5_machine::{Machine, Recorder, RunOptions};
 use pxpl5_radiosity::exact::point_to_polygon;
 use pxpl5_radiosity::mesh::mesh;
 use pxpl5_radiosity::program::{FormFactorProgram, FormFactorResult, RadiosityProgram};
 use pxpl5_radiosity::shot::{FfOptions, Method};
-use pxpl5_radiosity::views::{EdgeRule, V3, normalise};
+use pxpl5_radiosity::views::EdgeRule;
+
+type V3 = DVec3;
 use pxpl5_radiosity::{scenes, solver};
 
 fn machine_ff(point: V3, normal: V3, polygons: Vec<Vec<V3>>, options: FfOptions) -> Vec<f64> {
@@ -38,56 +42,48 @@ fn options(method: Method, resolution: u32) -> FfOptions {
     }
 }
 
-/// A deterministic generator for test geometry.
-struct Lcg(u64);
-impl Lcg {
-    fn f(&mut self, lo: f64, hi: f64) -> f64 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        lo + (hi - lo) * ((self.0 >> 11) as f64 / (1u64 << 53) as f64)
-    }
-}
-
 /// A square of half-size `h` centred at `c`, facing the origin.
 fn square(c: V3, h: f64, tilt: V3) -> Vec<V3> {
-    let n = normalise([-c[0] + tilt[0], -c[1] + tilt[1], -c[2] + tilt[2]]);
+    let n = (tilt - c).normalize();
     let helper = if n[0].abs() < 0.9 {
-        [1.0, 0.0, 0.0]
+        DVec3::new(1.0, 0.0, 0.0)
     } else {
-        [0.0, 1.0, 0.0]
+        DVec3::new(0.0, 1.0, 0.0)
     };
-    let t1 = normalise(pxpl5_radiosity::views::cross(n, helper));
-    let t2 = pxpl5_radiosity::views::cross(n, t1);
+    let t1 = n.cross(helper).normalize();
+    let t2 = n.cross(t1);
     [(1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0), (1.0, -1.0)]
         .iter()
         .map(|(a, b)| {
-            [
+            DVec3::new(
                 c[0] + h * (a * t1[0] + b * t2[0]),
                 c[1] + h * (a * t1[1] + b * t2[1]),
                 c[2] + h * (a * t1[2] + b * t2[2]),
-            ]
+            )
         })
         .collect()
 }
 
 #[test]
 fn large_polygons_are_within_a_few_tenths_of_a_percent_at_128() {
-    let mut rng = Lcg(3);
+    let mut rng = Lcg::new(3);
     for _ in 0..4 {
-        let c = [rng.f(-0.3, 0.3), rng.f(-0.3, 0.3), rng.f(0.8, 1.2)];
+        let c = DVec3::new(
+            rng.range(-0.3, 0.3),
+            rng.range(-0.3, 0.3),
+            rng.range(0.8, 1.2),
+        );
         let poly = square(
             c,
-            rng.f(0.7, 1.0),
-            [rng.f(-0.2, 0.2), rng.f(-0.2, 0.2), 0.0],
+            rng.range(0.7, 1.0),
+            DVec3::new(rng.range(-0.2, 0.2), rng.range(-0.2, 0.2), 0.0),
         );
-        let exact = point_to_polygon([0.0; 3], [0.0, 0.0, 1.0], &poly);
+        let exact = point_to_polygon(DVec3::ZERO, DVec3::new(0.0, 0.0, 1.0), &poly);
         assert!(exact > 0.2, "test polygon too small: {exact}");
         for (method, tol) in [(Method::Hemisphere, 0.003), (Method::Hemicube, 0.003)] {
             let f = machine_ff(
-                [0.0; 3],
-                [0.0, 0.0, 1.0],
+                DVec3::ZERO,
+                DVec3::new(0.0, 0.0, 1.0),
                 vec![poly.clone()],
                 options(method, 128),
             )[0];
@@ -111,21 +107,22 @@ fn size_tolerance(f: f64, n: f64) -> f64 {
 
 #[test]
 fn small_polygons_within_a_tolerance_that_scales_with_projected_size() {
-    let mut rng = Lcg(9);
+    let mut rng = Lcg::new(9);
     for _ in 0..12 {
-        let dir = normalise([rng.f(-1.0, 1.0), rng.f(-1.0, 1.0), rng.f(0.25, 1.0)]);
-        let d = rng.f(1.0, 3.0);
-        let poly = square(
-            [dir[0] * d, dir[1] * d, dir[2] * d],
-            rng.f(0.03, 0.2),
-            [0.0; 3],
-        );
-        let exact = point_to_polygon([0.0; 3], [0.0, 0.0, 1.0], &poly);
+        let dir = DVec3::new(
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(0.25, 1.0),
+        )
+        .normalize();
+        let d = rng.range(1.0, 3.0);
+        let poly = square(dir * d, rng.range(0.03, 0.2), DVec3::ZERO);
+        let exact = point_to_polygon(DVec3::ZERO, DVec3::new(0.0, 0.0, 1.0), &poly);
         for method in [Method::Hemisphere, Method::Hemicube] {
             let n = 128.0;
             let f = machine_ff(
-                [0.0; 3],
-                [0.0, 0.0, 1.0],
+                DVec3::ZERO,
+                DVec3::new(0.0, 0.0, 1.0),
                 vec![poly.clone()],
                 options(method, 128),
             )[0];
@@ -146,44 +143,53 @@ fn form_factors_inside_a_closed_box_sum_to_one() {
     // From points on the floor of a unit box, to the other five faces.
     let faces: Vec<Vec<V3>> = vec![
         vec![
-            [0.0, 0.0, 1.0],
-            [1.0, 0.0, 1.0],
-            [1.0, 1.0, 1.0],
-            [0.0, 1.0, 1.0],
+            DVec3::new(0.0, 0.0, 1.0),
+            DVec3::new(1.0, 0.0, 1.0),
+            DVec3::new(1.0, 1.0, 1.0),
+            DVec3::new(0.0, 1.0, 1.0),
         ],
         vec![
-            [0.0, 0.0, 0.0],
-            [0.0, 0.0, 1.0],
-            [0.0, 1.0, 1.0],
-            [0.0, 1.0, 0.0],
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(0.0, 0.0, 1.0),
+            DVec3::new(0.0, 1.0, 1.0),
+            DVec3::new(0.0, 1.0, 0.0),
         ],
         vec![
-            [1.0, 0.0, 0.0],
-            [1.0, 1.0, 0.0],
-            [1.0, 1.0, 1.0],
-            [1.0, 0.0, 1.0],
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(1.0, 1.0, 1.0),
+            DVec3::new(1.0, 0.0, 1.0),
         ],
         vec![
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [1.0, 0.0, 1.0],
-            [0.0, 0.0, 1.0],
+            DVec3::new(0.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 0.0),
+            DVec3::new(1.0, 0.0, 1.0),
+            DVec3::new(0.0, 0.0, 1.0),
         ],
         vec![
-            [0.0, 1.0, 0.0],
-            [0.0, 1.0, 1.0],
-            [1.0, 1.0, 1.0],
-            [1.0, 1.0, 0.0],
+            DVec3::new(0.0, 1.0, 0.0),
+            DVec3::new(0.0, 1.0, 1.0),
+            DVec3::new(1.0, 1.0, 1.0),
+            DVec3::new(1.0, 1.0, 0.0),
         ],
     ];
-    for p in [[0.5, 0.5, 0.0], [0.2, 0.7, 0.0], [0.05, 0.05, 0.0]] {
+    for p in [
+        DVec3::new(0.5, 0.5, 0.0),
+        DVec3::new(0.2, 0.7, 0.0),
+        DVec3::new(0.05, 0.05, 0.0),
+    ] {
         let exact: f64 = faces
             .iter()
-            .map(|f| point_to_polygon(p, [0.0, 0.0, 1.0], f))
+            .map(|f| point_to_polygon(p, DVec3::new(0.0, 0.0, 1.0), f))
             .sum();
         assert!((exact - 1.0).abs() < 1e-9);
         for method in [Method::Hemisphere, Method::Hemicube] {
-            let ff = machine_ff(p, [0.0, 0.0, 1.0], faces.clone(), options(method, 128));
+            let ff = machine_ff(
+                p,
+                DVec3::new(0.0, 0.0, 1.0),
+                faces.clone(),
+                options(method, 128),
+            );
             let sum: f64 = ff.iter().sum();
             assert!(
                 (sum - 1.0).abs() < 0.005,
@@ -195,24 +201,25 @@ fn form_factors_inside_a_closed_box_sum_to_one() {
 
 #[test]
 fn the_seed_edge_rule_gives_the_sign_of_c_rule_s_form_factors() {
-    let mut rng = Lcg(17);
+    let mut rng = Lcg::new(17);
     for _ in 0..8 {
-        let dir = normalise([rng.f(-1.0, 1.0), rng.f(-1.0, 1.0), rng.f(0.05, 1.0)]);
+        let dir = DVec3::new(
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(0.05, 1.0),
+        )
+        .normalize();
         // Some polygons straddle the horizon.
-        let poly = square(
-            [dir[0] * 1.5, dir[1] * 1.5, dir[2] * 1.5],
-            rng.f(0.1, 0.8),
-            [0.0; 3],
-        );
+        let poly = square(dir * 1.5, rng.range(0.1, 0.8), DVec3::ZERO);
         let a = machine_ff(
-            [0.0; 3],
-            [0.0, 0.0, 1.0],
+            DVec3::ZERO,
+            DVec3::new(0.0, 0.0, 1.0),
             vec![poly.clone()],
             options(Method::Hemisphere, 128),
         );
         let mut o = options(Method::Hemisphere, 128);
         o.edge_rule = EdgeRule::Seed;
-        let b = machine_ff([0.0; 3], [0.0, 0.0, 1.0], vec![poly], o);
+        let b = machine_ff(DVec3::ZERO, DVec3::new(0.0, 0.0, 1.0), vec![poly], o);
         // The rules differ only where L or Q is exactly 0 at a pixel centre: at most a pixel.
         let pixel = 4.0 / (std::f64::consts::PI * 128.0 * 128.0);
         assert!(
@@ -282,11 +289,11 @@ fn stored_w_depth_is_as_accurate_and_covers_the_same_pixels_as_taylor() {
         ..options(method, 128)
     };
     // One large unoccluded polygon: the same accuracy as the Taylor option.
-    let poly = square([0.1, -0.2, 1.0], 0.8, [0.1, 0.0, 0.0]);
-    let exact = point_to_polygon([0.0; 3], [0.0, 0.0, 1.0], &poly);
+    let poly = square(DVec3::new(0.1, -0.2, 1.0), 0.8, DVec3::new(0.1, 0.0, 0.0));
+    let exact = point_to_polygon(DVec3::ZERO, DVec3::new(0.0, 0.0, 1.0), &poly);
     let f = machine_ff(
-        [0.0; 3],
-        [0.0, 0.0, 1.0],
+        DVec3::ZERO,
+        DVec3::new(0.0, 0.0, 1.0),
         vec![poly],
         stored(Method::Hemisphere),
     )[0];
@@ -297,26 +304,26 @@ fn stored_w_depth_is_as_accurate_and_covers_the_same_pixels_as_taylor() {
     // Two polygons whose planes cross at low elevation: the coverage (the sum) is the same;
     // only which of the two wins near the crossing line may differ.
     let a = vec![
-        [1.0, -0.5, 0.05],
-        [1.0, 0.5, 0.05],
-        [1.0, 0.5, 0.6],
-        [1.0, -0.5, 0.6],
+        DVec3::new(1.0, -0.5, 0.05),
+        DVec3::new(1.0, 0.5, 0.05),
+        DVec3::new(1.0, 0.5, 0.6),
+        DVec3::new(1.0, -0.5, 0.6),
     ];
     let b = vec![
-        [0.7, -0.4, 0.02],
-        [1.3, -0.4, 0.5],
-        [1.3, 0.4, 0.5],
-        [0.7, 0.4, 0.02],
+        DVec3::new(0.7, -0.4, 0.02),
+        DVec3::new(1.3, -0.4, 0.5),
+        DVec3::new(1.3, 0.4, 0.5),
+        DVec3::new(0.7, 0.4, 0.02),
     ];
     let t = machine_ff(
-        [0.0; 3],
-        [0.0, 0.0, 1.0],
+        DVec3::ZERO,
+        DVec3::new(0.0, 0.0, 1.0),
         vec![a.clone(), b.clone()],
         options(Method::Hemisphere, 128),
     );
     let s = machine_ff(
-        [0.0; 3],
-        [0.0, 0.0, 1.0],
+        DVec3::ZERO,
+        DVec3::new(0.0, 0.0, 1.0),
         vec![a, b],
         stored(Method::Hemisphere),
     );
@@ -335,28 +342,32 @@ fn stored_w_depth_is_as_accurate_and_covers_the_same_pixels_as_taylor() {
 fn extremes_of_section_6() {
     let cases: Vec<Vec<V3>> = vec![
         // An edge whose plane contains the polar axis.
-        vec![[0.0, -1.0, 1.0], [0.0, 1.0, 1.0], [-1.0, 0.0, 1.0]],
+        vec![
+            DVec3::new(0.0, -1.0, 1.0),
+            DVec3::new(0.0, 1.0, 1.0),
+            DVec3::new(-1.0, 0.0, 1.0),
+        ],
         // Containing the pole.
         vec![
-            [-0.3, -0.3, 1.0],
-            [0.3, -0.3, 1.0],
-            [0.3, 0.3, 1.0],
-            [-0.3, 0.3, 1.0],
+            DVec3::new(-0.3, -0.3, 1.0),
+            DVec3::new(0.3, -0.3, 1.0),
+            DVec3::new(0.3, 0.3, 1.0),
+            DVec3::new(-0.3, 0.3, 1.0),
         ],
         // Straddling the horizon.
         vec![
-            [1.0, -0.5, -0.3],
-            [1.0, 0.5, -0.3],
-            [1.0, 0.5, 0.7],
-            [1.0, -0.5, 0.7],
+            DVec3::new(1.0, -0.5, -0.3),
+            DVec3::new(1.0, 0.5, -0.3),
+            DVec3::new(1.0, 0.5, 0.7),
+            DVec3::new(1.0, -0.5, 0.7),
         ],
     ];
     for poly in &cases {
-        let exact = point_to_polygon([0.0; 3], [0.0, 0.0, 1.0], poly);
+        let exact = point_to_polygon(DVec3::ZERO, DVec3::new(0.0, 0.0, 1.0), poly);
         for method in [Method::Hemisphere, Method::Hemicube] {
             let f = machine_ff(
-                [0.0; 3],
-                [0.0, 0.0, 1.0],
+                DVec3::ZERO,
+                DVec3::new(0.0, 0.0, 1.0),
                 vec![poly.clone()],
                 options(method, 128),
             )[0];
@@ -369,16 +380,16 @@ fn extremes_of_section_6() {
     }
     // In the shooter's plane: F = 0, and the GP culls it instead of dividing by D' = 0.
     let flat = vec![
-        [1.0, -0.5, 0.0],
-        [2.0, -0.5, 0.0],
-        [2.0, 0.5, 0.0],
-        [1.0, 0.5, 0.0],
+        DVec3::new(1.0, -0.5, 0.0),
+        DVec3::new(2.0, -0.5, 0.0),
+        DVec3::new(2.0, 0.5, 0.0),
+        DVec3::new(1.0, 0.5, 0.0),
     ];
     for method in [Method::Hemisphere, Method::Hemicube] {
         assert_eq!(
             machine_ff(
-                [0.0; 3],
-                [0.0, 0.0, 1.0],
+                DVec3::ZERO,
+                DVec3::new(0.0, 0.0, 1.0),
                 vec![flat.clone()],
                 options(method, 128)
             )[0],
@@ -386,28 +397,28 @@ fn extremes_of_section_6() {
         );
     }
     // Scale invariance: the GP translates and scales in f64 before fixed point.
-    let poly = square([0.2, 0.1, 1.0], 0.4, [0.1, 0.0, 0.0]);
+    let poly = square(DVec3::new(0.2, 0.1, 1.0), 0.4, DVec3::new(0.1, 0.0, 0.0));
     let reference = machine_ff(
-        [0.0; 3],
-        [0.0, 0.0, 1.0],
+        DVec3::ZERO,
+        DVec3::new(0.0, 0.0, 1.0),
         vec![poly.clone()],
         options(Method::Hemisphere, 128),
     )[0];
     for scale in [1e-6, 1e6] {
-        let origin = [3.0 * scale, -2.0 * scale, 5.0 * scale];
+        let origin = DVec3::new(3.0 * scale, -2.0 * scale, 5.0 * scale);
         let scaled: Vec<V3> = poly
             .iter()
             .map(|v| {
-                [
+                DVec3::new(
                     origin[0] + v[0] * scale,
                     origin[1] + v[1] * scale,
                     origin[2] + v[2] * scale,
-                ]
+                )
             })
             .collect();
         let f = machine_ff(
             origin,
-            [0.0, 0.0, 1.0],
+            DVec3::new(0.0, 0.0, 1.0),
             vec![scaled],
             options(Method::Hemisphere, 128),
         )[0];

@@ -2,23 +2,14 @@
 //! their normals face the right way, the Cornell box's quirks are handled as its header says;
 //! and bad scene files give errors that name the surface, never a panic.
 
-use pxpl5_config::radiosity_scene::{
-    RadiosityScene, best_fit_plane, check_radiosity_scene, parse_radiosity_scene,
-};
+use pxpl5_geom::DVec3;
 use pxpl5_radiosity::exact::point_to_polygon;
 use pxpl5_radiosity::mesh::{MeshError, mesh};
+use pxpl5_radiosity::scene::{RadiosityScene, check_radiosity_scene, parse_radiosity_scene};
 use pxpl5_radiosity::scenes::{CORNELL_BOX, EMPTY_BOX, closed_box, cornell_box, empty_box};
 
 fn close(a: f64, b: f64, rel: f64) -> bool {
     (a - b).abs() <= rel * a.abs().max(b.abs())
-}
-
-fn sub(a: (f64, f64, f64), b: (f64, f64, f64)) -> (f64, f64, f64) {
-    (a.0 - b.0, a.1 - b.1, a.2 - b.2)
-}
-
-fn dot(a: (f64, f64, f64), b: (f64, f64, f64)) -> f64 {
-    a.0 * b.0 + a.1 * b.1 + a.2 * b.2
 }
 
 fn object(scene: &RadiosityScene, k: usize) -> &str {
@@ -32,15 +23,11 @@ fn built_in_scenes_are_valid_and_mesh() {
     assert_eq!(cornell.surfaces.len(), 20);
     let patches = mesh(&cornell, 50.0).unwrap();
     assert!(patches.len() > 20, "{}", patches.len());
-    assert!(
-        patches
-            .iter()
-            .all(|p| p.area > 0.0 && p.centre.iter().all(|c| c.is_finite()))
-    );
+    assert!(patches.iter().all(|p| p.area > 0.0 && p.centre.is_finite()));
     let area: f64 = cornell
         .surfaces
         .iter()
-        .map(|s| best_fit_plane(&s.vertices).unwrap().area)
+        .map(|s| s.plane().unwrap().area)
         .sum();
     let meshed: f64 = patches.iter().map(|p| p.area).sum();
     assert!(close(area, meshed, 1e-12), "{area} {meshed}");
@@ -81,7 +68,7 @@ fn cornell_light_and_ceiling_areas() {
         .surfaces
         .iter()
         .filter(|s| s.name.starts_with("ceiling") || s.name == "light")
-        .map(|s| best_fit_plane(&s.vertices).unwrap().area)
+        .map(|s| s.plane().unwrap().area)
         .sum();
     assert!(close(ceiling, 556.0 * 559.2, 1e-12), "{ceiling}");
 }
@@ -89,14 +76,14 @@ fn cornell_light_and_ceiling_areas() {
 #[test]
 fn cornell_normals_point_into_the_box_and_out_of_the_blocks() {
     let cornell = cornell_box();
-    let centre = (278.0, 274.0, 280.0);
+    let centre = DVec3::new(278.0, 274.0, 280.0);
     let mut counts = [0; 3];
     for (k, s) in cornell.surfaces.iter().enumerate() {
-        let plane = best_fit_plane(&s.vertices).unwrap();
+        let plane = s.plane().unwrap();
         match object(&cornell, k) {
             "shell" | "light" => {
                 counts[0] += 1;
-                let side = dot(plane.normal, sub(centre, plane.point));
+                let side = plane.normal.dot(centre - plane.point);
                 assert!(side > 0.0, "{} faces away from the box's centre", s.name);
             }
             block @ ("short block" | "tall block") => {
@@ -107,14 +94,11 @@ fn cornell_normals_point_into_the_box_and_out_of_the_blocks() {
                     .iter()
                     .enumerate()
                     .filter(|&(j, _)| object(&cornell, j) == block)
-                    .flat_map(|(_, s)| s.vertices.iter().copied())
+                    .flat_map(|(_, s)| s.points())
                     .collect();
                 let n = vertices.len() as f64;
-                let sum = vertices
-                    .iter()
-                    .fold((0.0, 0.0, 0.0), |a, v| (a.0 + v.0, a.1 + v.1, a.2 + v.2));
-                let block_centre = (sum.0 / n, sum.1 / n, sum.2 / n);
-                let side = dot(plane.normal, sub(block_centre, plane.point));
+                let block_centre = vertices.iter().sum::<DVec3>() / n;
+                let side = plane.normal.dot(block_centre - plane.point);
                 assert!(side < 0.0, "{} faces into its block", s.name);
             }
             other => panic!("unexpected object {other:?} of {}", s.name),
@@ -125,20 +109,20 @@ fn cornell_normals_point_into_the_box_and_out_of_the_blocks() {
     // Spot checks of the main directions.
     let normal_of = |name: &str| {
         let s = cornell.surfaces.iter().find(|s| s.name == name).unwrap();
-        best_fit_plane(&s.vertices).unwrap().normal
+        s.plane().unwrap().normal
     };
-    assert_eq!(normal_of("floor"), (0.0, 1.0, 0.0));
-    assert_eq!(normal_of("light"), (0.0, -1.0, 0.0));
-    assert_eq!(normal_of("ceiling, front of light"), (0.0, -1.0, 0.0));
-    assert_eq!(normal_of("back wall"), (0.0, 0.0, -1.0));
-    assert_eq!(normal_of("right wall"), (1.0, 0.0, 0.0));
-    assert!(normal_of("left wall, floor side").0 < -0.99);
-    assert!(normal_of("left wall, ceiling side").0 < -0.99);
+    assert_eq!(normal_of("floor"), DVec3::Y);
+    assert_eq!(normal_of("light"), DVec3::NEG_Y);
+    assert_eq!(normal_of("ceiling, front of light"), DVec3::NEG_Y);
+    assert_eq!(normal_of("back wall"), DVec3::NEG_Z);
+    assert_eq!(normal_of("right wall"), DVec3::X);
+    assert!(normal_of("left wall, floor side").x < -0.99);
+    assert!(normal_of("left wall, ceiling side").x < -0.99);
     // The empty box's faces point into it too.
     for s in empty_box().surfaces {
-        let plane = best_fit_plane(&s.vertices).unwrap();
+        let plane = s.plane().unwrap();
         assert!(
-            dot(plane.normal, sub((0.5, 0.5, 0.5), plane.point)) > 0.0,
+            plane.normal.dot(DVec3::splat(0.5) - plane.point) > 0.0,
             "{}",
             s.name
         );
@@ -150,19 +134,19 @@ fn cornell_shell_is_closed_except_the_opening() {
     // Looking from the centre away from the opening, the shell (walls, floor, ceiling pieces and
     // light, which do not overlap) fills the whole hemisphere: the quirk fixes left no gaps.
     let cornell = cornell_box();
-    let shell: Vec<Vec<[f64; 3]>> = cornell
+    let shell: Vec<Vec<DVec3>> = cornell
         .surfaces
         .iter()
         .enumerate()
         .filter(|&(k, _)| matches!(object(&cornell, k), "shell" | "light"))
-        .map(|(_, s)| s.vertices.iter().map(|&(x, y, z)| [x, y, z]).collect())
+        .map(|(_, s)| s.points())
         .collect();
-    let p = [278.0, 274.0, 280.0];
-    let sum = |n: [f64; 3]| -> f64 { shell.iter().map(|f| point_to_polygon(p, n, f)).sum() };
-    let back = sum([0.0, 0.0, 1.0]);
+    let p = DVec3::new(278.0, 274.0, 280.0);
+    let sum = |n: DVec3| -> f64 { shell.iter().map(|f| point_to_polygon(p, n, f)).sum() };
+    let back = sum(DVec3::Z);
     assert!((back - 1.0).abs() < 1e-9, "{back}");
     // Facing the opening, much of the light escapes: the form factors do not sum to 1.
-    let front = sum([0.0, 0.0, -1.0]);
+    let front = sum(DVec3::NEG_Z);
     assert!(front < 0.7, "{front}");
 }
 

@@ -1,6 +1,6 @@
 //! The triangle-scene file of the polygon program: a camera and triangles with per-vertex colours,
-//! in RON, loaded and checked with the same error reports as machine configs (file, line, column
-//! for syntax; the triangle's index and field for semantic problems).
+//! in RON, loaded through `pxpl5-config`'s RON loader, so errors read as machine configs' do (file,
+//! line, column for syntax; the triangle's index and field for semantic problems).
 //!
 //! ```ron
 //! (
@@ -15,7 +15,8 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::{ConfigError, SemanticError};
+use pxpl5_config::{ConfigError, FileKind, SemanticError};
+use pxpl5_geom::vec3;
 
 /// A point or a colour.
 pub type Vec3 = (f64, f64, f64);
@@ -54,38 +55,49 @@ pub struct TriangleScene {
 
 /// Read, parse and check a triangle scene.
 pub fn load_triangle_scene(path: &Path) -> Result<TriangleScene, ConfigError> {
-    let (shown, text) = crate::read_text(path)?;
+    let (shown, text) = pxpl5_config::read_text(FileKind::TriangleScene, path)?;
     parse_triangle_scene(&shown, &text)
 }
 
 /// Parse and check a triangle scene held in memory; `file_name` names it in errors.
 pub fn parse_triangle_scene(file_name: &str, text: &str) -> Result<TriangleScene, ConfigError> {
-    crate::parse_checked(file_name, text, check_triangle_scene)
+    pxpl5_config::parse_checked(
+        FileKind::TriangleScene,
+        file_name,
+        text,
+        check_triangle_scene,
+    )
 }
 
 fn finite(v: Vec3) -> bool {
     v.0.is_finite() && v.1.is_finite() && v.2.is_finite()
 }
 
-fn sub(a: Vec3, b: Vec3) -> Vec3 {
-    (a.0 - b.0, a.1 - b.1, a.2 - b.2)
-}
-
-fn cross(a: Vec3, b: Vec3) -> Vec3 {
-    (
-        a.1 * b.2 - a.2 * b.1,
-        a.2 * b.0 - a.0 * b.2,
-        a.0 * b.1 - a.1 * b.0,
-    )
-}
-
-fn norm(a: Vec3) -> f64 {
-    (a.0 * a.0 + a.1 * a.1 + a.2 * a.2).sqrt()
-}
-
 /// Every problem of a scene: non-finite numbers, degenerate triangles (zero area: collinear or
 /// repeated vertices), colours outside 0..1, a camera that cannot see.
 pub fn check_triangle_scene(scene: &TriangleScene) -> Result<(), Vec<SemanticError>> {
+    let mut errors = check_camera(&scene.camera);
+    let mut err = |path: String, value: String, rule: &str| {
+        errors.push(SemanticError {
+            path,
+            value,
+            rule: rule.to_string(),
+        })
+    };
+    for (i, t) in scene.triangles.iter().enumerate() {
+        check_triangle(i, t, &mut err);
+    }
+    if errors.is_empty() {
+        Ok(())
+    } else {
+        Err(errors)
+    }
+}
+
+/// The problems of a camera (with `camera.*` paths): non-finite numbers, an up vector parallel to
+/// the view direction, a field of view outside (0, 180), near and far out of order. The radiosity
+/// scenes' cameras follow the same rules.
+pub fn check_camera(c: &Camera) -> Vec<SemanticError> {
     let mut errors = Vec::new();
     let mut err = |path: String, value: String, rule: &str| {
         errors.push(SemanticError {
@@ -94,7 +106,6 @@ pub fn check_triangle_scene(scene: &TriangleScene) -> Result<(), Vec<SemanticErr
             rule: rule.to_string(),
         })
     };
-    let c = &scene.camera;
     for (name, v) in [("eye", c.eye), ("target", c.target), ("up", c.up)] {
         if !finite(v) {
             err(
@@ -105,8 +116,8 @@ pub fn check_triangle_scene(scene: &TriangleScene) -> Result<(), Vec<SemanticErr
         }
     }
     if finite(c.eye) && finite(c.target) && finite(c.up) {
-        let dir = sub(c.target, c.eye);
-        if norm(dir) == 0.0 || norm(cross(dir, c.up)) <= 1e-12 * norm(dir) * norm(c.up) {
+        let (dir, up) = (vec3(c.target) - vec3(c.eye), vec3(c.up));
+        if dir.length() == 0.0 || dir.cross(up).length() <= 1e-12 * dir.length() * up.length() {
             err(
                 "camera.up".into(),
                 format!("{:?}", c.up),
@@ -128,52 +139,50 @@ pub fn check_triangle_scene(scene: &TriangleScene) -> Result<(), Vec<SemanticErr
             "must satisfy 0 < near < far < infinity",
         );
     }
-    for (i, t) in scene.triangles.iter().enumerate() {
-        if t.vertices.len() != 3 || t.colours.len() != 3 {
+    errors
+}
+
+/// The problems of triangle `i`, each passed to `err(path, value, rule)`.
+fn check_triangle(i: usize, t: &Triangle, err: &mut impl FnMut(String, String, &str)) {
+    if t.vertices.len() != 3 || t.colours.len() != 3 {
+        err(
+            format!("triangles[{i}]"),
+            format!("{} vertices, {} colours", t.vertices.len(), t.colours.len()),
+            "must have exactly 3 vertices and 3 colours",
+        );
+        return;
+    }
+    for (k, v) in t.vertices.iter().enumerate() {
+        if !finite(*v) {
             err(
-                format!("triangles[{i}]"),
-                format!("{} vertices, {} colours", t.vertices.len(), t.colours.len()),
-                "must have exactly 3 vertices and 3 colours",
+                format!("triangles[{i}].vertices[{k}]"),
+                format!("{v:?}"),
+                "must be finite numbers",
             );
-            continue;
-        }
-        for (k, v) in t.vertices.iter().enumerate() {
-            if !finite(*v) {
-                err(
-                    format!("triangles[{i}].vertices[{k}]"),
-                    format!("{v:?}"),
-                    "must be finite numbers",
-                );
-            }
-        }
-        for (k, v) in t.colours.iter().enumerate() {
-            let ok = [v.0, v.1, v.2].iter().all(|c| (0.0..=1.0).contains(c));
-            if !ok {
-                err(
-                    format!("triangles[{i}].colours[{k}]"),
-                    format!("{v:?}"),
-                    "components must be in 0..1",
-                );
-            }
-        }
-        if t.vertices.iter().all(|v| finite(*v)) {
-            let (a, b, c) = (t.vertices[0], t.vertices[1], t.vertices[2]);
-            let (e1, e2) = (sub(b, a), sub(c, a));
-            let area2 = norm(cross(e1, e2));
-            let scale = norm(e1).max(norm(e2));
-            if area2 <= 1e-12 * scale * scale {
-                err(
-                    format!("triangles[{i}]"),
-                    format!("{:?}", t.vertices),
-                    "is degenerate (zero area: repeated or collinear vertices)",
-                );
-            }
         }
     }
-    if errors.is_empty() {
-        Ok(())
-    } else {
-        Err(errors)
+    for (k, v) in t.colours.iter().enumerate() {
+        let ok = [v.0, v.1, v.2].iter().all(|c| (0.0..=1.0).contains(c));
+        if !ok {
+            err(
+                format!("triangles[{i}].colours[{k}]"),
+                format!("{v:?}"),
+                "components must be in 0..1",
+            );
+        }
+    }
+    if t.vertices.iter().all(|v| finite(*v)) {
+        let [a, b, c] = [0, 1, 2].map(|k| vec3(t.vertices[k]));
+        let (e1, e2) = (b - a, c - a);
+        let area2 = e1.cross(e2).length();
+        let scale = e1.length().max(e2.length());
+        if area2 <= 1e-12 * scale * scale {
+            err(
+                format!("triangles[{i}]"),
+                format!("{:?}", t.vertices),
+                "is degenerate (zero area: repeated or collinear vertices)",
+            );
+        }
     }
 }
 

@@ -1,6 +1,6 @@
 //! The scene file of the radiosity program: named planar convex polygons ("surfaces") with a
-//! reflectance and an emission, and an optional camera, in RON; loaded and checked with the same
-//! error reports as machine configs (file, line, column for syntax; for semantic problems the
+//! reflectance and an emission, and an optional camera, in RON; loaded through `pxpl5-config`'s
+//! RON loader and checked with the same error reports as machine configs (file, line, column for syntax; for semantic problems the
 //! surface by index and name, e.g. `surfaces[3] (left wall).vertices[1]`).
 //!
 //! ```ron
@@ -29,8 +29,11 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::scene::{Camera, TriangleScene, Vec3, check_triangle_scene};
-use crate::{ConfigError, SemanticError};
+use pxpl5_config::{ConfigError, FileKind, SemanticError};
+use pxpl5_geom::convex::{self, Corner};
+use pxpl5_geom::plane::{best_fit_plane, bounding_diagonal, worst_distance};
+use pxpl5_geom::{DVec3, vec3};
+pub use pxpl5_polygons::scene::{Camera, Vec3};
 
 /// A scene for the radiosity program.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -66,62 +69,16 @@ pub struct Surface {
     pub emission: Vec3,
 }
 
-/// The plane that best fits a polygon, see [`best_fit_plane`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Plane {
-    /// Unit normal, by the right-hand rule over the vertex order (Newell's method).
-    pub normal: Vec3,
-    /// A point of the plane: the mean of the vertices.
-    pub point: Vec3,
-    /// Area of the polygon projected onto the plane (the exact area for a planar polygon).
-    pub area: f64,
-}
+impl Surface {
+    /// The vertices as vectors.
+    pub fn points(&self) -> Vec<DVec3> {
+        self.vertices.iter().map(|&v| vec3(v)).collect()
+    }
 
-/// The best-fit plane of a polygon by Newell's method: the normal is the polygon's vector area
-/// (exact for planar polygons, the standard least-sensitive estimate for slightly non-planar ones)
-/// and the plane passes through the vertex mean.
-///
-/// `None` for fewer than 3 vertices, non-finite coordinates or zero vector area (collinear or
-/// coincident vertices), where no normal is defined.
-pub fn best_fit_plane(vertices: &[Vec3]) -> Option<Plane> {
-    if vertices.len() < 3 || !vertices.iter().all(|&v| finite(v)) {
-        return None;
+    /// The surface's best-fit plane (Newell's method); `None` where no normal is defined.
+    pub fn plane(&self) -> Option<pxpl5_geom::plane::Plane> {
+        best_fit_plane(&self.points())
     }
-    // Relative to vertex 0, so the cross products of large, far-off coordinates do not cancel.
-    let origin = vertices[0];
-    let mut n = (0.0, 0.0, 0.0);
-    for k in 1..vertices.len() - 1 {
-        let c = cross(sub(vertices[k], origin), sub(vertices[k + 1], origin));
-        n = (n.0 + c.0, n.1 + c.1, n.2 + c.2);
-    }
-    let len = norm(n);
-    if !(len > 0.0 && len.is_finite()) {
-        return None;
-    }
-    let count = vertices.len() as f64;
-    let sum = vertices
-        .iter()
-        .fold((0.0, 0.0, 0.0), |s, v| (s.0 + v.0, s.1 + v.1, s.2 + v.2));
-    Some(Plane {
-        normal: (n.0 / len, n.1 / len, n.2 / len),
-        point: (sum.0 / count, sum.1 / count, sum.2 / count),
-        area: len / 2.0,
-    })
-}
-
-/// Length of the diagonal of a polygon's axis-aligned bounding box: the "size" that the
-/// planarity and degeneracy tolerances are relative to, so they do not depend on the units.
-pub fn polygon_size(vertices: &[Vec3]) -> f64 {
-    let Some(&first) = vertices.first() else {
-        return 0.0;
-    };
-    let (lo, hi) = vertices.iter().fold((first, first), |(lo, hi), v| {
-        (
-            (lo.0.min(v.0), lo.1.min(v.1), lo.2.min(v.2)),
-            (hi.0.max(v.0), hi.1.max(v.1), hi.2.max(v.2)),
-        )
-    });
-    norm(sub(hi, lo))
 }
 
 /// Largest distance of a vertex from the polygon's plane allowed, relative to its size.
@@ -131,44 +88,24 @@ pub const PLANARITY_TOLERANCE: f64 = 1e-6;
 /// f64 rounding of a collinear polygon's vector area (about 1e-16), well below any real sliver.
 const ZERO_AREA: f64 = 1e-12;
 
-/// Below this sine of the turn between consecutive edges, a corner counts as straight (three
-/// collinear vertices): such a vertex gives the mesher and the hemisphere edge tests a zero-length
-/// or undefined edge plane.
-const STRAIGHT_CORNER: f64 = 1e-9;
-
 /// Read, parse and check a radiosity scene. The file's path (as given) names the source in errors.
 pub fn load_radiosity_scene(path: &Path) -> Result<RadiosityScene, ConfigError> {
-    let (shown, text) = crate::read_text(path)?;
+    let (shown, text) = pxpl5_config::read_text(FileKind::RadiosityScene, path)?;
     parse_radiosity_scene(&shown, &text)
 }
 
 /// Parse and check a radiosity scene held in memory; `file_name` names it in errors.
 pub fn parse_radiosity_scene(file_name: &str, text: &str) -> Result<RadiosityScene, ConfigError> {
-    crate::parse_checked(file_name, text, check_radiosity_scene)
+    pxpl5_config::parse_checked(
+        FileKind::RadiosityScene,
+        file_name,
+        text,
+        check_radiosity_scene,
+    )
 }
 
 fn finite(v: Vec3) -> bool {
     v.0.is_finite() && v.1.is_finite() && v.2.is_finite()
-}
-
-fn sub(a: Vec3, b: Vec3) -> Vec3 {
-    (a.0 - b.0, a.1 - b.1, a.2 - b.2)
-}
-
-fn dot(a: Vec3, b: Vec3) -> f64 {
-    a.0 * b.0 + a.1 * b.1 + a.2 * b.2
-}
-
-fn cross(a: Vec3, b: Vec3) -> Vec3 {
-    (
-        a.1 * b.2 - a.2 * b.1,
-        a.2 * b.0 - a.0 * b.2,
-        a.0 * b.1 - a.1 * b.0,
-    )
-}
-
-fn norm(a: Vec3) -> f64 {
-    dot(a, a).sqrt()
 }
 
 /// Every problem of a scene, each naming the surface by index and name: no surfaces; non-finite
@@ -185,15 +122,8 @@ pub fn check_radiosity_scene(scene: &RadiosityScene) -> Result<(), Vec<SemanticE
         });
     }
     if let Some(camera) = &scene.camera {
-        // The triangle scenes' camera rules apply unchanged, with the same `camera.*` paths:
-        // reuse them rather than keep two copies in step.
-        let probe = TriangleScene {
-            camera: camera.clone(),
-            triangles: Vec::new(),
-        };
-        if let Err(camera_errors) = check_triangle_scene(&probe) {
-            errors.extend(camera_errors);
-        }
+        // The triangle scenes' camera rules apply unchanged, with the same `camera.*` paths.
+        errors.extend(pxpl5_polygons::scene::check_camera(camera));
     }
     for (i, surface) in scene.surfaces.iter().enumerate() {
         check_surface(
@@ -253,33 +183,27 @@ fn check_surface(at: &str, s: &Surface, errors: &mut Vec<SemanticError>) {
     if s.vertices.len() < 3 || !all_finite {
         return;
     }
-    let v = &s.vertices;
-    let n = v.len();
-    let size = polygon_size(v);
-    let plane = best_fit_plane(v).filter(|p| size > 0.0 && p.area > ZERO_AREA * size * size);
+    let v = s.points();
+    let size = bounding_diagonal(&v);
+    let plane = best_fit_plane(&v).filter(|p| size > 0.0 && p.area > ZERO_AREA * size * size);
     let Some(plane) = plane else {
         err(
             format!("{at}.vertices"),
-            format!("{v:?}"),
+            format!("{:?}", s.vertices),
             "has zero area (coincident or collinear vertices)".into(),
         );
         return;
     };
 
-    // Planarity: the worst vertex's distance from the best-fit plane.
-    let (worst, distance) = v
-        .iter()
-        .map(|&p| dot(plane.normal, sub(p, plane.point)).abs())
-        .enumerate()
-        .fold(
-            (0, 0.0),
-            |best, (k, d)| if d > best.1 { (k, d) } else { best },
-        );
+    let (worst, distance) = worst_distance(&v, &plane);
     let limit = PLANARITY_TOLERANCE * size;
     if distance > limit {
         err(
             format!("{at}.vertices[{worst}]"),
-            format!("{:?}, {distance:.6} from the best-fit plane", v[worst]),
+            format!(
+                "{:?}, {distance:.6} from the best-fit plane",
+                s.vertices[worst]
+            ),
             format!(
                 "a surface must be planar: every vertex within {PLANARITY_TOLERANCE:e} x the \
                  polygon's size ({limit:.3e}) of its best-fit plane; split it into triangles"
@@ -287,53 +211,32 @@ fn check_surface(at: &str, s: &Surface, errors: &mut Vec<SemanticError>) {
         );
     }
 
-    // Convexity: every corner must turn the same way as the polygon's normal (left, seen from
-    // the front), and the turns must add up to one full turn, not two or more (a pentagram turns
-    // left at every corner but is not convex).
-    let mut total_turn = 0.0;
-    let mut convex = true;
-    for k in 0..n {
-        let (prev, here, next) = (v[(k + n - 1) % n], v[k], v[(k + 1) % n]);
-        let (e1, e2) = (sub(here, prev), sub(next, here));
-        let (l1, l2) = (norm(e1), norm(e2));
-        if l2 <= ZERO_AREA * size {
-            convex = false;
-            err(
+    let n = v.len();
+    let (bad, total_turn) = convex::corners(&v, plane.normal, ZERO_AREA * size);
+    for corner in &bad {
+        match *corner {
+            Corner::Repeat(k) => err(
                 format!("{at}.vertices[{}]", (k + 1) % n),
-                format!("{next:?}"),
+                format!("{:?}", s.vertices[(k + 1) % n]),
                 format!("repeats vertex {k}: consecutive vertices must differ"),
-            );
-            continue;
-        }
-        if l1 <= ZERO_AREA * size {
-            // Reported as a repeat at the previous corner.
-            convex = false;
-            continue;
-        }
-        let sine = dot(plane.normal, cross(e1, e2)) / (l1 * l2);
-        let cosine = dot(e1, e2) / (l1 * l2);
-        total_turn += sine.atan2(cosine);
-        if sine.abs() <= STRAIGHT_CORNER && cosine > 0.0 {
-            convex = false;
-            err(
+            ),
+            Corner::Straight(k) => err(
                 format!("{at}.vertices[{k}]"),
-                format!("{here:?}"),
+                format!("{:?}", s.vertices[k]),
                 "is collinear with its neighbours: remove it (a straight corner has no \
                  defined turn)"
                     .into(),
-            );
-        } else if sine <= STRAIGHT_CORNER {
-            convex = false;
-            err(
+            ),
+            Corner::Reflex(k) => err(
                 format!("{at}.vertices[{k}]"),
-                format!("{here:?}"),
+                format!("{:?}", s.vertices[k]),
                 "makes the polygon non-convex (the corner turns clockwise seen from the front, \
                  or folds back); split the surface into convex pieces"
                     .into(),
-            );
+            ),
         }
     }
-    if convex && total_turn > 3.0 * std::f64::consts::PI {
+    if bad.is_empty() && total_turn > 3.0 * std::f64::consts::PI {
         err(
             format!("{at}.vertices"),
             format!(
@@ -406,20 +309,6 @@ mod tests {
             (0, 1, 0)], reflectance: (0.5, 0.5, 0.5)), (name: \"lamp\", vertices: [(0, 0, 1), \
             (0, 1, 1), (1, 1, 1), (1, 0, 1)], reflectance: (0, 0, 0), emission: (1, 1, 1))])";
         parse_radiosity_scene("docs.ron", docs).unwrap();
-    }
-
-    #[test]
-    fn plane_and_size() {
-        let p = best_fit_plane(&[(0.0, 0.0, 0.0), (2.0, 0.0, 0.0), (2.0, 3.0, 0.0)]).unwrap();
-        assert_eq!(p.normal, (0.0, 0.0, 1.0));
-        assert_eq!(p.area, 3.0);
-        assert!(best_fit_plane(&[(0.0, 0.0, 0.0), (1.0, 1.0, 1.0), (2.0, 2.0, 2.0)]).is_none());
-        assert!(best_fit_plane(&[(0.0, 0.0, 0.0), (1.0, 0.0, 0.0)]).is_none());
-        assert!(
-            best_fit_plane(&[(f64::NAN, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)]).is_none()
-        );
-        assert_eq!(polygon_size(&[(0.0, 0.0, 0.0), (3.0, 4.0, 0.0)]), 5.0);
-        assert_eq!(polygon_size(&[]), 0.0);
     }
 
     #[test]
