@@ -2,20 +2,23 @@
 //! - the Renderer: the benchmark's hemisphere mix on every shipped machine config, at both
 //!   fidelity levels; each golden records the Renderer cycles, the per-kind command counts and
 //!   cycles, and the digest of the board's final state;
-//! - the machine: the polygon program on `programs/polygons/scenes/small.ron` on every shipped
-//!   config; each golden is the run's stats.json (simulated figures only), plus a digest of the
-//!   frame;
-//! - radiosity: three shots of the Cornell box (patches of 150 mm) with each form-factor method
-//!   on every shipped config; each golden is the run's stats.json, the shooters, and a digest of
-//!   the solution.
+//! - the machine (`machine_goldens!`, every program on every shipped config): the polygon program
+//!   on `programs/polygons/scenes/small.ron`, and three shots of the Cornell box (patches of
+//!   150 mm) with each form-factor method. Each golden is a functional block (what was computed:
+//!   the frame's digest; the shooters, culls and the solution's digest) and a timing table with
+//!   the same numbers as the run's stats.json, a line per total, phase, GP, Renderer, ring
+//!   channel and ring node (`machine_golden.rs`).
 //!
 //! A golden changes only on purpose, in a commit whose message says why the timing changed
 //! (`INSTA_UPDATE=always cargo test -p pxpl5-tests --test goldens` rewrites them).
 
 use std::fmt::Write;
 
+use pxpl5_radiosity::shot::Method;
 use pxpl5_renderer::{Board, Fidelity, workload};
 use pxpl5_tests::workspace_root;
+
+mod machine_golden;
 
 fn golden(config_file: &str) -> String {
     let path = workspace_root().join("machine-configs").join(config_file);
@@ -77,123 +80,184 @@ fn renderer_mix_minimal() {
     insta::assert_snapshot!(golden("minimal.ron"));
 }
 
-fn polygons_golden(config_file: &str) -> String {
+/// A machine run's golden: the header, the functional block (the program's `functional` lines)
+/// and the timing table of `machine_golden::text`, checked to hold every figure of the run's
+/// stats.json.
+fn machine_golden(
+    result: &pxpl5_machine::RunResult,
+    units: &[pxpl5_machine::Unit],
+    functional: &[String],
+    program_timing: &[String],
+) -> String {
+    let text = machine_golden::text(&result.stats, units, functional, program_timing);
+    machine_golden::assert_holds_stats_json(&text, &result.stats.to_json());
+    text
+}
+
+/// Runs `program` on the shipped config `config_file`: the result and the ring position of each
+/// unit.
+fn run_machine(
+    config_file: &str,
+    program: &dyn pxpl5_machine::Program,
+) -> (pxpl5_machine::RunResult, Vec<pxpl5_machine::Unit>) {
     use pxpl5_machine::{Machine, Recorder, RunOptions};
-    let root = workspace_root();
-    let cfg = pxpl5_config::load_file(&root.join("machine-configs").join(config_file))
-        .expect("shipped configs are valid");
+    let path = workspace_root().join("machine-configs").join(config_file);
+    let cfg = pxpl5_config::load_file(&path).expect("shipped configs are valid");
+    let machine =
+        Machine::new(&cfg, program, RunOptions::default(), Recorder::default()).expect("builds");
+    let units = machine.units().to_vec();
+    (machine.run().expect("runs"), units)
+}
+
+/// FNV-1a, 64 bits.
+fn fnv1a64(words: impl IntoIterator<Item = u64>) -> u64 {
+    words.into_iter().fold(0xcbf29ce484222325, |h, w| {
+        (h ^ w).wrapping_mul(0x100000001b3)
+    })
+}
+
+/// The polygon program on `programs/polygons/scenes/small.ron`.
+fn polygons_small() -> pxpl5_polygons::Polygons {
     let scene = pxpl5_polygons::scene::load_triangle_scene(
-        &root.join("programs/polygons/scenes/small.ron"),
+        &workspace_root().join("programs/polygons/scenes/small.ron"),
     )
     .expect("the small scene is valid");
-    let program = pxpl5_polygons::Polygons::new(scene);
-    let result = Machine::new(&cfg, &program, RunOptions::default(), Recorder::default())
-        .expect("builds")
-        .run()
-        .expect("runs");
-    let frame: u64 = result.frame.rgb.iter().fold(0xcbf29ce484222325, |h, &b| {
-        (h ^ u64::from(b)).wrapping_mul(0x100000001b3)
-    });
-    format!(
-        "frame fnv1a64: {frame:016x}\n{}",
-        serde_json::to_string_pretty(&result.stats.to_json()).expect("json")
+    pxpl5_polygons::Polygons::new(scene)
+}
+
+/// The polygon program's golden; functional: the frame's digest.
+fn polygons_golden(config_file: &str) -> String {
+    let (result, units) = run_machine(config_file, &polygons_small());
+    let frame = fnv1a64(result.frame.rgb.iter().map(|&b| u64::from(b)));
+    machine_golden(
+        &result,
+        &units,
+        &[format!("frame fnv1a64: {frame:016x}")],
+        &[],
     )
 }
 
-#[test]
-fn polygons_small_seed_tr89_002() {
-    insta::assert_snapshot!(polygons_golden("seed-tr89-002.ron"));
-}
-
-#[test]
-fn polygons_small_pxpl5_1989() {
-    insta::assert_snapshot!(polygons_golden("pxpl5-1989.ron"));
-}
-
-#[test]
-fn polygons_small_minimal() {
-    insta::assert_snapshot!(polygons_golden("minimal.ron"));
-}
-
-fn radiosity_golden(config_file: &str, method: pxpl5_radiosity::shot::Method) -> String {
-    use pxpl5_machine::{Machine, Recorder, RunOptions};
-    use pxpl5_radiosity::{mesh::mesh, program::RadiosityProgram, scenes, shot::FfOptions};
-    let root = workspace_root();
-    let cfg = pxpl5_config::load_file(&root.join("machine-configs").join(config_file))
-        .expect("shipped configs are valid");
+/// Three shots of the Cornell box (patches of 150 mm) with `method`; functional: the shooters,
+/// reciprocity clamps, culls and the solution's digest; timing: when each shot ended.
+fn radiosity_golden(config_file: &str, method: Method) -> String {
+    use pxpl5_radiosity::shot::{CullCounts, FfOptions};
+    use pxpl5_radiosity::{mesh::mesh, program::RadiosityProgram, scenes};
     let patches = mesh(&scenes::cornell_box(), 150.0).expect("meshes");
     let options = FfOptions {
         method,
         ..FfOptions::default()
     };
     let program = RadiosityProgram::new(patches, options, 3, 0.0);
-    let result = Machine::new(&cfg, &program, RunOptions::default(), Recorder::default())
-        .expect("builds")
-        .run()
-        .expect("runs");
+    let (result, units) = run_machine(config_file, &program);
     let s = program.solution.borrow();
-    let digest = s
-        .radiosity
+    let digest = fnv1a64(s.radiosity.iter().flatten().map(|x| x.to_bits()));
+    let CullCounts {
+        back_facing,
+        below_horizon,
+        coplanar,
+        outside_face,
+        unrepresentable,
+    } = s.culls;
+    let shooters: Vec<String> = s.shots.iter().map(|(i, _)| i.to_string()).collect();
+    let functional = [
+        format!("method: {}", method.name()),
+        format!("shooters: {}", shooters.join(", ")),
+        format!("reciprocity clamps: {}", s.reciprocity_clamps),
+        format!(
+            "culls: back-facing {back_facing}, below horizon {below_horizon}, coplanar \
+             {coplanar}, outside face {outside_face}, unrepresentable {unrepresentable}"
+        ),
+        format!("solution fnv1a64: {digest:016x}"),
+    ];
+    let timing: Vec<String> = s
+        .shots
         .iter()
-        .flat_map(|b| b.iter())
-        .fold(0xcbf29ce484222325u64, |h, x| {
-            (h ^ x.to_bits()).wrapping_mul(0x100000001b3)
-        });
-    format!(
-        "shooters: {:?}\nreciprocity clamps: {}\nculls: {:?}\nsolution fnv1a64: {digest:016x}\n{}",
-        s.shots.iter().map(|(i, t)| (*i, t.0)).collect::<Vec<_>>(),
-        s.reciprocity_clamps,
-        s.culls,
-        serde_json::to_string_pretty(&result.stats.to_json()).expect("json")
-    )
+        .enumerate()
+        .map(|(k, (i, end))| {
+            format!(
+                "{:<26} {:>14} ps",
+                format!("shot {k} (patch {i}) ended"),
+                end.0
+            )
+        })
+        .collect();
+    machine_golden(&result, &units, &functional, &timing)
 }
 
-#[test]
-fn radiosity_cornell_hemisphere_seed_tr89_002() {
-    insta::assert_snapshot!(radiosity_golden(
-        "seed-tr89-002.ron",
-        pxpl5_radiosity::shot::Method::Hemisphere
-    ));
+/// One golden per (program, shipped config): `machine_goldens! { name: golden_fn, ... }` makes a
+/// module `name` with a test per config of `machine-configs/` (`name::minimal`, ...), whose
+/// snapshot is `snapshots/goldens__{name}_{config}.snap`; `golden_fn` maps a config file to the
+/// golden text.
+macro_rules! machine_goldens {
+    ($($program:ident: $golden:expr),* $(,)?) => {
+        machine_goldens!(@cross [
+            minimal: "minimal.ron",
+            pxpl5_1989: "pxpl5-1989.ron",
+            seed_tr89_002: "seed-tr89-002.ron"
+        ] $($program: $golden),*);
+    };
+    (@cross $configs:tt $($program:ident: $golden:expr),*) => {
+        machine_goldens!(@list $configs);
+        $(machine_goldens!(@program $program, $golden, $configs);)*
+    };
+    (@list [$($config:ident: $file:literal),*]) => {
+        /// The config files the machine goldens run on.
+        const MACHINE_CONFIGS: &[&str] = &[$($file),*];
+    };
+    (@program $program:ident, $golden:expr, [$($config:ident: $file:literal),*]) => {
+        mod $program {
+            use super::*;
+            $(
+                #[test]
+                fn $config() {
+                    let golden: fn(&str) -> String = $golden;
+                    assert_machine_golden(
+                        concat!(stringify!($program), "_", stringify!($config)),
+                        &golden($file),
+                    );
+                }
+            )*
+        }
+    };
 }
 
-#[test]
-fn radiosity_cornell_hemicube_seed_tr89_002() {
-    insta::assert_snapshot!(radiosity_golden(
-        "seed-tr89-002.ron",
-        pxpl5_radiosity::shot::Method::Hemicube
-    ));
+/// Compares `text` with `snapshots/goldens__{name}.snap`.
+fn assert_machine_golden(name: &str, text: &str) {
+    insta::assert_snapshot!(name, text);
 }
 
-#[test]
-fn radiosity_cornell_hemisphere_pxpl5_1989() {
-    insta::assert_snapshot!(radiosity_golden(
-        "pxpl5-1989.ron",
-        pxpl5_radiosity::shot::Method::Hemisphere
-    ));
+machine_goldens! {
+    polygons_small: polygons_golden,
+    radiosity_cornell_hemisphere: |cfg| radiosity_golden(cfg, Method::Hemisphere),
+    radiosity_cornell_hemicube: |cfg| radiosity_golden(cfg, Method::Hemicube),
 }
 
+/// The machine goldens cover every shipped config.
 #[test]
-fn radiosity_cornell_hemicube_pxpl5_1989() {
-    insta::assert_snapshot!(radiosity_golden(
-        "pxpl5-1989.ron",
-        pxpl5_radiosity::shot::Method::Hemicube
-    ));
+fn machine_goldens_run_on_every_shipped_config() {
+    let mut shipped: Vec<String> = std::fs::read_dir(workspace_root().join("machine-configs"))
+        .expect("machine-configs/ exists")
+        .map(|e| {
+            e.expect("readable")
+                .file_name()
+                .to_string_lossy()
+                .into_owned()
+        })
+        .filter(|n| n.ends_with(".ron"))
+        .collect();
+    shipped.sort();
+    assert_eq!(shipped, MACHINE_CONFIGS);
 }
 
+/// The check of a machine golden is not vacuous: a text that holds one figure of stats.json
+/// once fewer than the JSON does fails it.
 #[test]
-fn radiosity_cornell_hemisphere_minimal() {
-    insta::assert_snapshot!(radiosity_golden(
-        "minimal.ron",
-        pxpl5_radiosity::shot::Method::Hemisphere
-    ));
-}
-
-#[test]
-fn radiosity_cornell_hemicube_minimal() {
-    insta::assert_snapshot!(radiosity_golden(
-        "minimal.ron",
-        pxpl5_radiosity::shot::Method::Hemicube
-    ));
+#[should_panic(expected = "lacks these numbers of stats.json")]
+fn machine_golden_check_notices_a_dropped_figure() {
+    let (result, units) = run_machine("minimal.ron", &polygons_small());
+    let text = machine_golden::text(&result.stats, &units, &[], &[]);
+    let end = result.stats.end.0.to_string();
+    machine_golden::assert_holds_stats_json(&text.replacen(&end, "", 1), &result.stats.to_json());
 }
 
 /// The same radiosity run twice, and at both fidelity levels: identical stats and solution.
