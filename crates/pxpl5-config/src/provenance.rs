@@ -1,5 +1,5 @@
 //! Where every config parameter comes from: one [`Provenance`] entry per leaf field of the
-//! serialized config, with the tag of `pixel-planes-5-facts.md` and a short source.
+//! serialized config, with its tag and row in `docs/hardware.md` and a short source.
 //!
 //! The table describes each field's *default* value (the seed's machine). A config file that
 //! changes a value says in its own comments where the new value comes from. A test walks the
@@ -10,7 +10,7 @@ use std::fmt;
 
 use ron::ser::path_meta::{Field, Fields};
 
-/// The kind of source of a parameter, as tagged in `pixel-planes-5-facts.md`.
+/// The kind of source of a parameter, as tagged in `docs/hardware.md`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Tag {
     /// Fuchs et al., "Pixel-Planes 5", SIGGRAPH '89.
@@ -28,7 +28,7 @@ pub enum Tag {
 }
 
 impl Tag {
-    /// The tag as written in the facts file and in config comments, e.g. `[paper]`.
+    /// The tag as written in `docs/hardware.md` and in config comments, e.g. `[paper]`.
     pub fn label(self) -> &'static str {
         match self {
             Tag::Paper => "[paper]",
@@ -53,7 +53,7 @@ pub struct Provenance {
     /// Dotted path of the field in the RON file, e.g. `renderer.qee.latency_cycles`.
     pub path: &'static str,
     pub tag: Tag,
-    /// Where the default comes from; `facts:` names the row of `pixel-planes-5-facts.md`.
+    /// Where the default comes from, most often ending with its row of `docs/hardware.md`.
     pub source: &'static str,
 }
 
@@ -84,95 +84,96 @@ pub const PROVENANCE: &[Provenance] = &[
     p(
         "gp.clock_hz",
         Secondary,
-        "Intel i860 at 40 MHz (facts: Graphics Processors)",
+        "Intel i860 at 40 MHz (docs/hardware.md: Graphics Processors)",
     ),
     p(
         "gp.memory_bytes",
         Assumed,
-        "8 MB per GP, recalled, unverified (facts: GP memory)",
+        "8 MB per GP, recalled, unverified (docs/hardware.md: GP memory)",
     ),
     p(
         "gp.costs.vertex_transform",
         Assumed,
-        "i860 cycles, 4x4 transform about 16-32 at 80 MFLOPS peak (facts: GP costs)",
+        "i860 cycles, 4x4 transform about 16-32 at 80 MFLOPS peak (docs/hardware.md: GP costs)",
     ),
     p(
         "gp.costs.clip_test",
         Assumed,
-        "i860 cycles, six compares (facts: GP costs)",
+        "i860 cycles, six compares (docs/hardware.md: GP costs)",
     ),
     p(
         "gp.costs.polygon_setup",
         Assumed,
-        "i860 cycles, plane equation, bounding box, binning (facts: GP costs)",
+        "i860 cycles, plane equation, bounding box, binning (docs/hardware.md: GP costs)",
     ),
     p(
         "gp.costs.edge_setup",
         Assumed,
-        "i860 cycles per linear or quadratic expression (facts: GP costs)",
+        "i860 cycles per linear or quadratic expression (docs/hardware.md: GP costs)",
     ),
     p(
         "gp.costs.command_encode",
         Assumed,
-        "i860 cycles per Renderer command (facts: GP costs)",
+        "i860 cycles per Renderer command (docs/hardware.md: GP costs)",
     ),
     p(
         "gp.costs.message_send",
         Assumed,
-        "i860 cycles of software per ring message sent (facts: GP costs)",
+        "i860 cycles of software per ring message sent (docs/hardware.md: GP costs)",
     ),
     p(
         "gp.costs.message_receive",
         Assumed,
-        "i860 cycles of software per ring message received (facts: GP costs)",
+        "i860 cycles of software per ring message received (docs/hardware.md: GP costs)",
     ),
     p(
         "gp.costs.ff_accumulate_per_pixel",
         Assumed,
-        "i860 cycles per read-back pixel of form-factor accumulation (facts: GP costs)",
+        "i860 cycles per read-back pixel of form-factor accumulation (docs/hardware.md: GP costs)",
     ),
     p(
         "gp.costs.radiosity_update_per_patch",
         Assumed,
-        "i860 cycles per patch and colour band (facts: GP costs)",
+        "i860 cycles per patch and colour band (docs/hardware.md: GP costs)",
     ),
     // Ring.
     p(
         "ring.channels",
         Seed,
-        "TR89-002: 80 million words/s \"4 channels on the ring\" (facts: Ring as the seed costs it)",
+        "TR89-002: 80 million words/s \"4 channels on the ring\" (docs/hardware.md: Ring as the \
+         seed costs it)",
     ),
     p(
         "ring.channel_clock_hz",
         Seed,
         "TR89-002: 80 Mwords/s over 4 channels = 20 MHz; [paper]'s 5 Gbit/s is 40 MHz with 32-bit \
-         words (facts: Ring as the seed costs it, Interconnect)",
+         words (docs/hardware.md: Ring as the seed costs it, Interconnect)",
     ),
     p(
         "ring.word_bits",
         Assumed,
         "32: TR89-002 counts words, not bits; 32 bits makes [paper]'s 5 Gbit/s 160 Mwords/s \
-         (facts: Interconnect)",
+         (docs/hardware.md: Interconnect)",
     ),
     p(
         "ring.hop_latency_cycles",
         Assumed,
-        "1 channel clock per hop (facts: Ring hop latency, header size, ...)",
+        "1 channel clock per hop (docs/hardware.md: Ring hop latency, header size, ...)",
     ),
     p(
         "ring.header_words",
         Assumed,
-        "1 header word per message (facts: Ring hop latency, header size, ...)",
+        "1 header word per message (docs/hardware.md: Ring hop latency, header size, ...)",
     ),
     p(
         "ring.max_message_words",
         Assumed,
-        "messages up to 1,024 words (facts: Ring hop latency, header size, ...)",
+        "messages up to 1,024 words (docs/hardware.md: Ring hop latency, header size, ...)",
     ),
     p(
         "ring.token_policy",
         Assumed,
-        "early token release (facts: Ring hop latency, header size, ...)",
+        "early token release (docs/hardware.md: Ring hop latency, header size, ...)",
     ),
     p(
         "ring.node_order",
@@ -194,44 +195,45 @@ pub const PROVENANCE: &[Provenance] = &[
     p(
         "renderer.width",
         Paper,
-        "128 x 128 pixel processors per Renderer (facts: Renderers)",
+        "128 x 128 pixel processors per Renderer (docs/hardware.md: Renderers)",
     ),
     p(
         "renderer.height",
         Paper,
-        "128 x 128 pixel processors per Renderer (facts: Renderers)",
+        "128 x 128 pixel processors per Renderer (docs/hardware.md: Renderers)",
     ),
     p(
         "renderer.pixel_memory_bits",
         Paper,
-        "208 bits of on-chip memory per pixel (facts: On-chip memory)",
+        "208 bits of on-chip memory per pixel (docs/hardware.md: On-chip memory)",
     ),
     p(
         "renderer.flag_registers",
         Assumed,
-        "4 one-bit flags besides the [secondary] enable register (facts: Enable register)",
+        "4 one-bit flags besides the [secondary] enable register (docs/hardware.md: Enable \
+         register)",
     ),
     p(
         "renderer.backing_store_bits",
         Paper,
-        "4,096 bits of video RAM per pixel (facts: Backing store)",
+        "4,096 bits of video RAM per pixel (docs/hardware.md: Backing store)",
     ),
     p(
         "renderer.clock_hz",
         Paper,
-        "40 MHz design clock, 1.6 um CMOS (facts: Clock)",
+        "40 MHz design clock, 1.6 um CMOS (docs/hardware.md: Clock)",
     ),
     p(
         "renderer.qee.coefficient_format.int_bits",
         Assumed,
-        "13 integer bits, room for values up to about N^2 (facts: QEE coefficient precision; \
-         radiosity-formulas.md section 6)",
+        "13 integer bits, room for values up to about N^2 (docs/hardware.md: QEE coefficient \
+         precision; docs/radiosity.md section 6.3)",
     ),
     p(
         "renderer.qee.coefficient_format.frac_bits",
         Assumed,
-        "18 fractional bits place a hemisphere edge within 0.1 pixel at 128 across (facts: QEE \
-         coefficient precision; radiosity-formulas.md section 6)",
+        "18 fractional bits place a hemisphere edge within 0.1 pixel at 128 across \
+         (docs/hardware.md: QEE coefficient precision; docs/radiosity.md section 6.2)",
     ),
     p(
         "renderer.qee.coordinate_bits",
@@ -241,83 +243,85 @@ pub const PROVENANCE: &[Provenance] = &[
     p(
         "renderer.qee.max_result_bits",
         Assumed,
-        "result windows up to 64 bits, chosen per command (facts: QEE coefficient precision and \
-         result width)",
+        "result windows up to 64 bits, chosen per command (docs/hardware.md: QEE coefficient \
+         precision and result width)",
     ),
     p(
         "renderer.qee.latency_cycles",
         Assumed,
-        "8 cycles of pipeline fill: 7 tree levels for 128 pixels plus one (facts: QEE latency)",
+        "8 cycles of pipeline fill: 7 tree levels for 128 pixels plus one (docs/hardware.md: QEE \
+         latency)",
     ),
     p(
         "renderer.qee.quadratic_extra_cycles",
         Lineage,
-        "0: the quadratic tree runs at the linear one's clock, b + latency cycles (facts: Cost of \
-         the quadratic tree; Cycles of a QEE command)",
+        "0: the quadratic tree runs at the linear one's clock, b + latency cycles \
+         (docs/hardware.md: Cost of the quadratic tree; Cycles of a QEE command)",
     ),
     p(
         "renderer.cycles.igc_overhead",
         Assumed,
-        "20 cycles of IGC decode per command (facts: IGC overhead per command)",
+        "20 cycles of IGC decode per command (docs/hardware.md: IGC overhead per command)",
     ),
     p(
         "renderer.cycles.logic",
         Assumed,
-        "1 cycle per enable or flag operation (facts: Bit-serial ALU costs)",
+        "1 cycle per enable or flag operation (docs/hardware.md: Bit-serial ALU costs)",
     ),
     p(
         "renderer.cycles.alu_setup",
         Assumed,
-        "+1 cycle of set-up per add, subtract or compare (facts: Bit-serial ALU costs)",
+        "+1 cycle of set-up per add, subtract or compare (docs/hardware.md: Bit-serial ALU costs)",
     ),
     p(
         "renderer.cycles.per_bit",
         Assumed,
-        "1 cycle per bit of a bit-serial operation (facts: Bit-serial ALU costs)",
+        "1 cycle per bit of a bit-serial operation (docs/hardware.md: Bit-serial ALU costs)",
     ),
     p(
         "renderer.cycles.multiply_per_bit_pair",
         Assumed,
-        "n x m cycles for an n-bit by m-bit multiply (facts: Bit-serial ALU costs)",
+        "n x m cycles for an n-bit by m-bit multiply (docs/hardware.md: Bit-serial ALU costs)",
     ),
     p(
         "renderer.cycles.backing_store_issue",
         Assumed,
-        "1 foreground cycle to start a backing-store transfer (facts: Backing store block \
-         transfer)",
+        "1 foreground cycle to start a backing-store transfer (docs/hardware.md: Backing store \
+         32-bit block transfer)",
     ),
     p(
         "renderer.cycles.readback_per_bit",
         Assumed,
-        "1 cycle per bit to move a field to the readback port (facts: Where readback goes)",
+        "1 cycle per bit to move a field to the readback port (docs/hardware.md: Where readback \
+         goes)",
     ),
     p(
         "renderer.cycles.set_origin",
         Assumed,
-        "0 cycles beyond the IGC overhead to load a region origin (facts: IGC overhead per \
-         command)",
+        "0 cycles beyond the IGC overhead to load a region origin (docs/hardware.md: IGC overhead \
+         per command)",
     ),
     p(
         "renderer.backing_store.block_bits",
         Paper,
-        "32-bit blocks, also [secondary] (facts: Backing store)",
+        "32-bit blocks, also [secondary] (docs/hardware.md: Backing store)",
     ),
     p(
         "renderer.backing_store.block_cycles",
         Assumed,
         "4,096 Renderer cycles per block in the background, VRAM serial ports of the period \
-         (facts: Backing store 32-bit block transfer)",
+         (docs/hardware.md: Backing store 32-bit block transfer)",
     ),
     // Frame buffer and host.
     p(
         "frame_buffer.width",
         Paper,
-        "1280 x 1024 pixels (facts: Frame buffer)",
+        "1280 x 1024 pixels (docs/hardware.md: Frame buffer)",
     ),
     p(
         "frame_buffer.height",
         Paper,
-        "1280 x 1024 pixels (facts: Frame buffer)",
+        "1280 x 1024 pixels (docs/hardware.md: Frame buffer)",
     ),
     p(
         "frame_buffer.bits_per_pixel",
@@ -327,7 +331,7 @@ pub const PROVENANCE: &[Provenance] = &[
     p(
         "host.present",
         Secondary,
-        "a host workstation is attached to the ring (facts: Host)",
+        "a host workstation is attached to the ring (docs/hardware.md: Host)",
     ),
 ];
 
