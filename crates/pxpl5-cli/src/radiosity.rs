@@ -48,7 +48,7 @@ pub struct RadiosityArgs {
     /// Pixels across the hemisphere's disk and the hemicube's top face.
     #[arg(long, default_value_t = 128)]
     pub resolution: u32,
-    /// Hemisphere edge rule: sign-of-c (radiosity-formulas.md section 3) or seed (TR89-002's
+    /// Hemisphere edge rule: sign-of-c (docs/radiosity.md section 3) or seed (TR89-002's
     /// CASE 1 / CASE 2).
     #[arg(long, default_value = "sign-of-c", value_parser = ["sign-of-c", "seed"])]
     pub edge_rule: String,

@@ -8,7 +8,7 @@
 //! Configs are [RON](https://docs.rs/ron) files in `machine-configs/`. The structural fields
 //! (the config's `name` and the counts of GPs, ring channels and Renderers) are required in every
 //! file, because no source fixes them; every timing and format field has a default taken from
-//! `pixel-planes-5-facts.md`, each tagged with where it comes from (see [`provenance`]). The seed's
+//! `docs/hardware.md`, each tagged with where it comes from (see [`provenance`]). The seed's
 //! machine, `machine-configs/seed-tr89-002.ron`, is embedded in the binary ([`EMBEDDED_TEXT`],
 //! [`default_config`]) so the simulator runs without any file.
 //!

@@ -1,7 +1,7 @@
 //! The machine-config schema: one serde type per section of a `machine-configs/*.ron` file.
 //!
 //! Every field documents its unit and its provenance tag, as in
-//! `../shared/reference/pixel-planes-5-facts.md`: **[paper]** (Fuchs et al., SIGGRAPH '89),
+//! `docs/hardware.md`: **[paper]** (Fuchs et al., SIGGRAPH '89),
 //! **[seed]** (Goldfeather, TR89-002), **[secondary]**, **[lineage]** (Pixel-Planes 4, Goldfeather
 //! & Fuchs 1986) or **[assumed]** (no source found; a named, configurable assumption).
 //! The same tags are listed per field in [`crate::provenance::PROVENANCE`], which `pxpl5 config
@@ -184,7 +184,7 @@ impl FixedFormat {
 pub struct QeeConfig {
     /// Format of the coefficients A..F fed to the tree. [assumed]: 1 + 13 + 18 = 32 bits; at least
     /// 18 fractional bits place a hemisphere edge within 0.1 pixel at 128 across
-    /// (radiosity-formulas.md section 6.2).
+    /// (docs/radiosity.md section 6.2).
     pub coefficient_format: FixedFormat,
     /// Bits of a pixel address (x and y) the tree accepts, region origin included: pixel addresses
     /// lie in 0 .. 2^coordinate_bits. [assumed]: 12, enough for a 1280 x 1024 frame buffer.
@@ -199,7 +199,7 @@ pub struct QeeConfig {
 }
 
 /// Renderer cycles of every IGC command, as the terms of one cost function
-/// (`pxpl5_renderer::cycle_cost`). All [assumed] unless noted; see pixel-planes-5-facts.md.
+/// (`pxpl5_renderer::cycle_cost`). All [assumed] unless noted; see docs/hardware.md.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RendererCycleTable {

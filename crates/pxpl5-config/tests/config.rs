@@ -888,8 +888,8 @@ fn config_files_write_every_field_and_tag_it() {
             }
             if entry.tag != Tag::Choice {
                 assert!(
-                    comment.contains("pixel-planes-5-facts.md"),
-                    "{file}: {leaf} must cite its row of pixel-planes-5-facts.md: {comment:?}"
+                    comment.contains("docs/hardware.md"),
+                    "{file}: {leaf} must cite its row of docs/hardware.md: {comment:?}"
                 );
             }
         }

@@ -4,7 +4,7 @@
 //! costs the same at every fidelity level; both levels call [`cycle_cost`]. The terms come from
 //! `renderer.cycles` and `renderer.qee` of the machine config, whose docs tag each as [paper],
 //! [lineage] or [assumed] (all of today's terms but the bit-serial structure are assumptions, from
-//! `pixel-planes-5-facts.md`, "Not found anywhere"):
+//! `docs/hardware.md`, "Not found anywhere"):
 //!
 //! | command | cycles |
 //! |---|---|

@@ -1,7 +1,7 @@
 //! A fixed, documented Renderer command mix that looks like the radiosity work: the command stream
 //! of `pxpl5 bench renderer`, of the criterion benchmark, and of the fidelity-equivalence tests.
 //!
-//! **The hemisphere mix** (Goldfeather, TR89-002; radiosity-formulas.md section 3): N random
+//! **The hemisphere mix** (Goldfeather, TR89-002; docs/radiosity.md section 3): N random
 //! convex quads above a shooter at the origin with normal +z, seen on a hemisphere buffer that
 //! fills one board (u = (px + 0.5 - W/2) / (W/2), likewise v). Per polygon:
 //!

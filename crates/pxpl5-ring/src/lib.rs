@@ -5,7 +5,7 @@
 //! a GP, a Renderer, the frame buffer or the host is the machine crate's business. Everything is
 //! deterministic: ordered maps only, no wall clock, no randomness.
 //!
-//! Tags follow `../shared/reference/pixel-planes-5-facts.md` ("facts" below): **\[seed\]** is
+//! Tags follow `docs/hardware.md` ("facts" below): **\[seed\]** is
 //! Goldfeather TR89-002, **\[assumed\]** means no source was found and the rule is this model's
 //! choice (the facts' row "Ring hop latency, header size, max message, token rules, broadcast"
 //! unless said otherwise); every \[assumed\] number is a field of [`pxpl5_config::RingConfig`].

@@ -1,6 +1,6 @@
 //! Exact form factors, the ground truth the machine's hemisphere and hemicube are measured
 //! against: from a differential area to an unoccluded polygon, by Lambert's (Hottel's) contour
-//! formula (radiosity-formulas.md section 4).
+//! formula (docs/radiosity.md section 4).
 //!
 //! For a point `p` with unit normal `n` and a polygon `v_0 .. v_{m-1}`:
 //!

@@ -2,7 +2,7 @@
 //!
 //! - [`FormFactorProgram`]: the form factors from one point to a list of polygons (the
 //!   `pxpl5 formfactor` tool and the accuracy tests);
-//! - [`RadiosityProgram`]: progressive refinement (radiosity-formulas.md section 1) per colour
+//! - [`RadiosityProgram`]: progressive refinement (docs/radiosity.md section 1) per colour
 //!   band. Patch j is owned by GP j mod G. Per shot: every GP proposes its patch of largest
 //!   unshot power to GP 0, which picks the shooter and tells everyone; the GPs compute the
 //!   shot's form factors together ([`crate::shot::shoot`]); partial sums go to the receivers'

@@ -1,5 +1,5 @@
 //! Host-side reference solutions, for tests and for measuring the machine's error: progressive
-//! refinement with exact point-to-patch form factors (radiosity-formulas.md sections 1 and 4),
+//! refinement with exact point-to-patch form factors (docs/radiosity.md sections 1 and 4),
 //! and a direct solve of (I - rho F) B = E on the same form-factor matrix.
 //!
 //! Both use the matrix the progressive method implies: F_ij from the centre of shooter i to

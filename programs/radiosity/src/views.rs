@@ -4,7 +4,7 @@
 //! an ID store), and each pixel of a view has a delta form factor.
 //!
 //! Coordinates: the shooter at the origin, its normal +z, scaled by 1/`scale` so that distances
-//! are at most about 1 (radiosity-formulas.md section 6.5: translate and scale in f64 before
+//! are at most about 1 (docs/radiosity.md section 6.5: translate and scale in f64 before
 //! converting to fixed point). Pixel (s, t) of a view has QEE address (s, t) (the board's origin
 //! carries a tile's or a face's offset), and its sample point is the pixel's centre.
 //!
@@ -67,7 +67,7 @@ impl Frame {
 /// Which rule turns a hemisphere edge's two sign flags into enable.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum EdgeRule {
-    /// radiosity-formulas.md section 3: the edge plane's normal points into the polygon; by the
+    /// docs/radiosity.md section 3: the edge plane's normal points into the polygon; by the
     /// sign of C: C > 0: L >= 0 or Q <= 0; C < 0: L >= 0 and Q >= 0; C = 0: L >= 0.
     SignOfC,
     /// TR89-002 as written: the normal chosen with C < 0, POS = L >= 0, INSIDE = Q <= 0, and a

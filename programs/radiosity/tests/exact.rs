@@ -1,5 +1,5 @@
 //! Tests of the exact point-to-polygon form factor against the closed forms of Howell's catalog
-//! (radiosity-formulas.md section 4), its invariances, the horizon clipping, degenerate shapes,
+//! (docs/radiosity.md section 4), its invariances, the horizon clipping, degenerate shapes,
 //! and additivity: from inside a closed box the form factors to the six faces sum to 1.
 
 use std::f64::consts::TAU;

@@ -335,7 +335,7 @@ fn stored_w_depth_is_as_accurate_and_covers_the_same_pixels_as_taylor() {
     assert!(s[0] > 0.0 && s[1] > 0.0);
 }
 
-/// radiosity-formulas.md section 6 on the machine: an edge through the pole (C = 0), a polygon
+/// docs/radiosity.md section 6 on the machine: an edge through the pole (C = 0), a polygon
 /// containing the pole, one straddling the horizon, one in the shooter's plane, and scenes at
 /// scales from 1e-6 to 1e6.
 #[test]
