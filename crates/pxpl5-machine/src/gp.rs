@@ -102,6 +102,34 @@ impl Op {
     }
 }
 
+/// The i860 operations a piece of GP work performed, priced by the cost table when
+/// [`Gp::work`] charges them. Work that can run outside a GP (to record a command stream, say)
+/// takes a `&mut Cost` and notes each operation where it does it, so what is charged and what is
+/// computed cannot drift apart.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Cost {
+    ops: Vec<(Op, u64)>,
+}
+
+impl Cost {
+    /// Note `count` operations of kind `op`.
+    pub fn add(&mut self, op: Op, count: u64) {
+        if count > 0 {
+            self.ops.push((op, count));
+        }
+    }
+
+    /// The operations noted, in order.
+    pub fn ops(&self) -> &[(Op, u64)] {
+        &self.ops
+    }
+
+    /// i860 cycles of everything noted.
+    pub fn cycles(&self, t: &GpCostTable) -> u64 {
+        self.ops.iter().map(|&(op, n)| op.cycles(t) * n).sum()
+    }
+}
+
 /// What a waiting GP asked the machine for.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Request {
@@ -210,6 +238,15 @@ impl Gp {
     pub async fn compute(&self, op: Op, count: u64) {
         self.compute_cycles(Cycles(op.cycles(&self.costs) * count))
             .await
+    }
+
+    /// Do a piece of GP work and charge what it noted in its [`Cost`], as one call: `f` runs on
+    /// the host (instantly), then the GP is busy for the cycles of the operations it noted.
+    pub async fn work<T>(&self, f: impl FnOnce(&mut Cost) -> T) -> T {
+        let mut cost = Cost::default();
+        let out = f(&mut cost);
+        self.compute_cycles(Cycles(cost.cycles(&self.costs))).await;
+        out
     }
 
     /// Be busy for a number of i860 cycles.

@@ -10,7 +10,7 @@ mod machine;
 mod record;
 mod stats;
 
-pub use gp::{Gp, GpFuture, Message, Op, Payload, Program, ProgramError, Unit};
+pub use gp::{Cost, Gp, GpFuture, Message, Op, Payload, Program, ProgramError, Unit};
 pub use machine::{Frame, Machine, RunError, RunOptions, RunResult, node_order};
 pub use record::Recorder;
 pub use stats::{GpStats, PhaseSpan, RendererNodeStats, RunStats};

@@ -11,8 +11,9 @@
 
 use std::collections::BTreeMap;
 
+use pxpl5_config::FixedFormat;
 use pxpl5_geom::DVec3;
-use pxpl5_machine::{Gp, Op, Payload, ProgramError, Unit};
+use pxpl5_machine::{Cost, Gp, Op, Payload, ProgramError, Unit};
 use pxpl5_renderer::{Command, Rect, readback};
 
 use crate::views::{
@@ -74,7 +75,7 @@ pub struct Receiver {
 
 /// One view: where it is drawn and how its pixels weigh.
 #[derive(Clone, Debug)]
-struct View {
+pub(crate) struct View {
     /// Which of the shot's shooters it belongs to.
     shooter: usize,
     renderer: u32,
@@ -89,7 +90,7 @@ struct View {
 }
 
 #[derive(Clone, Copy, Debug)]
-enum ViewKind {
+pub(crate) enum ViewKind {
     /// A tile of the disk of `n` pixels across.
     Disk {
         n: u32,
@@ -122,8 +123,77 @@ impl CullCounts {
     }
 }
 
+impl View {
+    /// Pixels across the view's disk or face.
+    fn n(&self) -> u32 {
+        match self.kind {
+            ViewKind::Disk { n } | ViewKind::Face { n, .. } => n,
+        }
+    }
+
+    /// The commands that prepare a board for this view (see [`view_setup`]).
+    pub(crate) fn setup_commands(&self, f: &ViewFields, format: FixedFormat) -> Vec<Command> {
+        let hemisphere = matches!(self.kind, ViewKind::Disk { .. });
+        let rows = if hemisphere { self.n() } else { self.rows };
+        view_setup(hemisphere, self.n(), self.origin, rows, f, format)
+    }
+
+    /// The commands that draw one receiver (vertices in the shooter's frame) in this view, or
+    /// why it is culled; the GP operations it took are noted in `cost`: the clip test per vertex,
+    /// for a hemicube face that the cheap test does not rule out a transform per vertex, and for
+    /// a drawn receiver its set-up and one edge set-up per QEE expression.
+    pub(crate) fn receiver_commands(
+        &self,
+        verts: &[DVec3],
+        id: u16,
+        opts: &FfOptions,
+        (f, format): (&ViewFields, FixedFormat),
+        cost: &mut Cost,
+    ) -> Result<Vec<Command>, Cull> {
+        cost.add(Op::ClipTest, verts.len() as u64);
+        let drawn = match self.kind {
+            ViewKind::Disk { n } => {
+                hemisphere_polygon(verts, id, n, (opts.edge_rule, opts.depth), f, format)
+            }
+            ViewKind::Face { face, n } => {
+                if opts.skip_faces && !may_touch(verts, face) {
+                    Err(Cull::OutsideFace)
+                } else {
+                    cost.add(Op::VertexTransform, verts.len() as u64);
+                    hemicube_polygon(verts, id, face, n, f, format)
+                }
+            }
+        }?;
+        cost.add(Op::PolygonSetup, 1);
+        let expressions = drawn.iter().filter(|c| c.qee().is_some()).count() as u64;
+        cost.add(Op::EdgeSetup, expressions);
+        Ok(drawn)
+    }
+
+    /// The readback of band `band` of `gps` of this view's IDs to GP `band`; `None` for an empty
+    /// band.
+    pub(crate) fn band_readback(&self, f: &ViewFields, band: u32, gps: u32) -> Option<Command> {
+        let (y0, y1) = band_rows(self.rows, gps, band);
+        (y0 < y1).then(|| Command::Readback {
+            field: f.id,
+            rect: Rect {
+                x: 0,
+                y: y0,
+                width: self.width,
+                height: y1 - y0,
+            },
+            dest: Unit::Gp(band).encode(),
+            tag: 0,
+        })
+    }
+}
+
 /// The views of `opts` on a machine with `renderers` boards of `side` pixels.
-fn views(opts: &FfOptions, renderers: u32, side: u32) -> Result<Vec<View>, ProgramError> {
+pub(crate) fn views(
+    opts: &FfOptions,
+    renderers: u32,
+    side: u32,
+) -> Result<Vec<View>, ProgramError> {
     let n = opts.resolution;
     let mut out = Vec::new();
     match opts.method {
@@ -341,18 +411,7 @@ pub async fn shoot(
         gp.phase("renderer setup");
         if g == 0 {
             for v in round {
-                let (n, rows) = match v.kind {
-                    ViewKind::Disk { n } => (n, n),
-                    ViewKind::Face { face, n } => (n, face.rows(n)),
-                };
-                let mut cmds = view_setup(
-                    matches!(v.kind, ViewKind::Disk { .. }),
-                    n,
-                    v.origin,
-                    rows,
-                    &fields,
-                    format,
-                );
+                let mut cmds = v.setup_commands(&fields, format);
                 cmds.push(fence(&fields, 0));
                 gp.send_commands(v.renderer, cmds).await;
                 // Stored-w depth: write the board's w table once per run, in messages of whole
@@ -408,25 +467,9 @@ pub async fn shoot(
             let mut batch: Vec<Command> = Vec::new();
             let mut words = 0;
             for (r, verts) in receivers.iter().zip(&local[v.shooter]) {
-                gp.compute(Op::ClipTest, verts.len() as u64).await;
-                let drawn = match v.kind {
-                    ViewKind::Disk { n } => hemisphere_polygon(
-                        verts,
-                        r.id,
-                        n,
-                        (opts.edge_rule, opts.depth),
-                        &fields,
-                        format,
-                    ),
-                    ViewKind::Face { face, n } => {
-                        if opts.skip_faces && !may_touch(verts, face) {
-                            Err(Cull::OutsideFace)
-                        } else {
-                            gp.compute(Op::VertexTransform, verts.len() as u64).await;
-                            hemicube_polygon(verts, r.id, face, n, &fields, format)
-                        }
-                    }
-                };
+                let drawn = gp
+                    .work(|cost| v.receiver_commands(verts, r.id, opts, (&fields, format), cost))
+                    .await;
                 let cmds = match drawn {
                     Ok(c) => c,
                     Err(c) => {
@@ -434,9 +477,6 @@ pub async fn shoot(
                         continue;
                     }
                 };
-                gp.compute(Op::PolygonSetup, 1).await;
-                let expressions = cmds.iter().filter(|c| c.qee().is_some()).count() as u64;
-                gp.compute(Op::EdgeSetup, expressions).await;
                 let w: u32 = cmds
                     .iter()
                     .map(|c| c.words(coefficient_bits, word_bits))
@@ -469,22 +509,9 @@ pub async fn shoot(
             // 3. Read the IDs back: each view in row bands, one band per GP.
             for v in round {
                 for band in 0..gps {
-                    let (y0, y1) = band_rows(v.rows, gps, band);
-                    if y0 == y1 {
-                        continue;
+                    if let Some(cmd) = v.band_readback(&fields, band, gps) {
+                        gp.send_commands(v.renderer, vec![cmd]).await;
                     }
-                    let cmd = Command::Readback {
-                        field: fields.id,
-                        rect: Rect {
-                            x: 0,
-                            y: y0,
-                            width: v.width,
-                            height: y1 - y0,
-                        },
-                        dest: Unit::Gp(band).encode(),
-                        tag: 0,
-                    };
-                    gp.send_commands(v.renderer, vec![cmd]).await;
                 }
             }
         } else {
@@ -563,7 +590,7 @@ fn view_name(v: &View) -> String {
 
 /// A one-pixel readback of the ID field to GP `g`: it executes after every earlier command on
 /// the board, so its arrival tells `g` that they are done.
-fn fence(f: &ViewFields, g: u32) -> Command {
+pub(crate) fn fence(f: &ViewFields, g: u32) -> Command {
     Command::Readback {
         field: f.id,
         rect: Rect {

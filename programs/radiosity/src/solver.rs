@@ -11,21 +11,21 @@ use crate::mesh::Patch;
 
 /// F[i][j]: from the centre of patch i to patch j (0 on the diagonal).
 pub fn exact_matrix(patches: &[Patch]) -> Vec<Vec<f64>> {
+    (0..patches.len()).map(|i| exact_row(patches, i)).collect()
+}
+
+/// F_ij from the centre of patch `i` to every patch j (0 for j = i): row `i` of [`exact_matrix`].
+pub fn exact_row(patches: &[Patch], i: usize) -> Vec<f64> {
+    let pi = &patches[i];
     patches
         .iter()
         .enumerate()
-        .map(|(i, pi)| {
-            patches
-                .iter()
-                .enumerate()
-                .map(|(j, pj)| {
-                    if i == j {
-                        0.0
-                    } else {
-                        point_to_polygon(pi.centre, pi.normal, &pj.vertices)
-                    }
-                })
-                .collect()
+        .map(|(j, pj)| {
+            if i == j {
+                0.0
+            } else {
+                point_to_polygon(pi.centre, pi.normal, &pj.vertices)
+            }
         })
         .collect()
 }
@@ -38,8 +38,21 @@ pub fn progressive(
     threshold: f64,
     max_shots: usize,
 ) -> Vec<[f64; 3]> {
+    progressive_by_rows(patches, |i| f[i].clone(), threshold, max_shots).0
+}
+
+/// [`progressive`] with the form-factor row of each shooter from `row(i)` (only the shooters'
+/// rows are needed): the radiosity per patch and band, and the shooters in order. The shooter is
+/// the patch of largest unshot power, ties to the lower index.
+pub fn progressive_by_rows(
+    patches: &[Patch],
+    mut row: impl FnMut(usize) -> Vec<f64>,
+    threshold: f64,
+    max_shots: usize,
+) -> (Vec<[f64; 3]>, Vec<usize>) {
     let mut b: Vec<[f64; 3]> = patches.iter().map(|p| p.emission).collect();
     let mut db = b.clone();
+    let mut shooters = Vec::new();
     let power = |p: &Patch, u: [f64; 3]| (u[0] + u[1] + u[2]) * p.area;
     let emitted: f64 = patches.iter().map(|p| power(p, p.emission)).sum();
     for _ in 0..max_shots {
@@ -51,12 +64,14 @@ pub fn progressive(
         if emitted <= 0.0 || best / emitted < threshold {
             break;
         }
+        shooters.push(i);
+        let fi = row(i);
         let shot = db[i];
         for (j, pj) in patches.iter().enumerate() {
             if j == i {
                 continue;
             }
-            let fji = (f[i][j] * patches[i].area / pj.area).min(1.0);
+            let fji = (fi[j] * patches[i].area / pj.area).min(1.0);
             for k in 0..3 {
                 let d = pj.reflectance[k] * shot[k] * fji;
                 b[j][k] += d;
@@ -65,7 +80,7 @@ pub fn progressive(
         }
         db[i] = [0.0; 3];
     }
-    b
+    (b, shooters)
 }
 
 /// The solution of (I - rho F^T') B = E with F_ji = F_ij A_i / A_j, by Gauss-Seidel iteration
