@@ -1,7 +1,8 @@
 //! Cycle-count goldens, one file per case in `tests/snapshots/`:
-//! - the Renderer: the benchmark's hemisphere mix on every shipped machine config, at both
-//!   fidelity levels; each golden records the Renderer cycles, the per-kind command counts and
-//!   cycles, and the digest of the board's final state;
+//! - the Renderer: the benchmark's stream (the radiosity program's commands for the first
+//!   Cornell-box shot, hemisphere and hemicube, `pxpl5_radiosity::stream`) on every shipped
+//!   machine config, at both fidelity levels; each golden records the Renderer cycles, the
+//!   per-kind command counts and cycles, and the digest of the board's final state;
 //! - the machine (`machine_goldens!`, every program on every shipped config): the polygon program
 //!   on `programs/polygons/scenes/small.ron`, and three shots of the Cornell box (patches of
 //!   150 mm) with each form-factor method. Each golden is a functional block (what was computed:
@@ -14,8 +15,9 @@
 
 use std::fmt::Write;
 
-use pxpl5_radiosity::shot::Method;
-use pxpl5_renderer::{Board, Fidelity, workload};
+use pxpl5_radiosity::shot::{FfOptions, Method};
+use pxpl5_radiosity::stream::cornell_stream;
+use pxpl5_renderer::{Board, Fidelity};
 use pxpl5_tests::workspace_root;
 
 mod machine_golden;
@@ -23,42 +25,48 @@ mod machine_golden;
 fn golden(config_file: &str) -> String {
     let path = workspace_root().join("machine-configs").join(config_file);
     let cfg = pxpl5_config::load_file(&path).expect("shipped configs are valid");
-    let mix = workload::hemisphere_mix(&cfg.renderer, 40, 7).expect("the mix fits every config");
     let mut out = String::new();
-    let mut first: Option<(u64, String)> = None;
-    for fidelity in [Fidelity::Bit, Fidelity::Word] {
-        let mut board = Board::new(&cfg.renderer, cfg.ring.word_bits, fidelity);
-        let cycles = mix.run(&mut board).expect("the mix runs").0;
-        let digest = board.image().digest();
-        match &first {
-            None => {
-                writeln!(out, "config: {} ({})", cfg.name, config_file).unwrap();
-                writeln!(out, "workload: {}", mix.description).unwrap();
-                writeln!(out, "renderer cycles: {cycles}").unwrap();
-                let s = board.stats();
-                writeln!(
-                    out,
-                    "commands: {}, busy {}, stall {}",
-                    s.commands, s.busy.0, s.stall.0
-                )
-                .unwrap();
-                for (kind, k) in &s.by_kind {
+    writeln!(out, "config: {} ({})", cfg.name, config_file).unwrap();
+    for method in [Method::Hemisphere, Method::Hemicube] {
+        let opts = FfOptions {
+            method,
+            ..FfOptions::default()
+        };
+        let stream = cornell_stream(&cfg, &opts, 1).expect("the stream fits every config");
+        let mut first: Option<(u64, String)> = None;
+        for fidelity in [Fidelity::Bit, Fidelity::Word] {
+            let mut board = Board::new(&cfg.renderer, cfg.ring.word_bits, fidelity);
+            let cycles = stream.run(&mut board).expect("the stream runs").0;
+            let digest = board.image().digest();
+            match &first {
+                None => {
+                    writeln!(out, "\nstream: {}", stream.description).unwrap();
+                    writeln!(out, "renderer cycles: {cycles}").unwrap();
+                    let s = board.stats();
                     writeln!(
                         out,
-                        "  {kind:<12} {:>6} commands {:>9} cycles",
-                        k.count, k.cycles
+                        "commands: {}, busy {}, stall {}",
+                        s.commands, s.busy.0, s.stall.0
                     )
                     .unwrap();
+                    for (kind, k) in &s.by_kind {
+                        writeln!(
+                            out,
+                            "  {kind:<12} {:>6} commands {:>9} cycles",
+                            k.count, k.cycles
+                        )
+                        .unwrap();
+                    }
+                    writeln!(out, "digest: {digest}").unwrap();
+                    first = Some((cycles, digest));
                 }
-                writeln!(out, "digest: {digest}").unwrap();
-                first = Some((cycles, digest));
-            }
-            Some((c, d)) => {
-                assert_eq!(
-                    (*c, d.as_str()),
-                    (cycles, digest.as_str()),
-                    "{fidelity:?} differs"
-                )
+                Some((c, d)) => {
+                    assert_eq!(
+                        (*c, d.as_str()),
+                        (cycles, digest.as_str()),
+                        "{fidelity:?} differs"
+                    )
+                }
             }
         }
     }
@@ -66,17 +74,17 @@ fn golden(config_file: &str) -> String {
 }
 
 #[test]
-fn renderer_mix_seed_tr89_002() {
+fn renderer_stream_seed_tr89_002() {
     insta::assert_snapshot!(golden("seed-tr89-002.ron"));
 }
 
 #[test]
-fn renderer_mix_pxpl5_1989() {
+fn renderer_stream_pxpl5_1989() {
     insta::assert_snapshot!(golden("pxpl5-1989.ron"));
 }
 
 #[test]
-fn renderer_mix_minimal() {
+fn renderer_stream_minimal() {
     insta::assert_snapshot!(golden("minimal.ron"));
 }
 

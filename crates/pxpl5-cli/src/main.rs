@@ -47,7 +47,8 @@ enum Command {
     /// Run a program on a machine: writes DIR/frame.png, DIR/stats.json and DIR/config.ron,
     /// prints the stats table; --trace and --vcd record simulated time.
     Run(run::RunArgs),
-    /// Measure simulation speed on a fixed, documented workload.
+    /// Measure simulation speed on a fixed, documented workload: the radiosity program's own
+    /// Renderer command stream.
     #[command(subcommand)]
     Bench(BenchCommand),
 }

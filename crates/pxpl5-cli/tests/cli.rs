@@ -99,21 +99,30 @@ fn bench_levels_print_the_same_cycles_and_digest() {
     let out = pxpl5(&[
         "bench",
         "renderer",
-        "--polygons",
-        "12",
+        "--shots",
+        "1",
+        "--resolution",
+        "64",
         "--repeat",
         "1",
         "--json",
     ]);
     assert!(out.status.success(), "{}", text(&out.stderr));
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    let levels = v["levels"].as_array().unwrap();
-    assert_eq!(levels.len(), 2);
-    assert_eq!(levels[0]["fidelity"], "bit");
-    assert_eq!(levels[0]["renderer_cycles"], levels[1]["renderer_cycles"]);
-    assert_eq!(levels[0]["digest"], levels[1]["digest"]);
+    let streams = v["streams"].as_array().unwrap();
+    assert_eq!(streams.len(), 2);
+    assert_eq!(streams[0]["method"], "hemisphere");
+    assert_eq!(streams[1]["method"], "hemicube");
+    for s in streams {
+        let levels = s["levels"].as_array().unwrap();
+        assert_eq!(levels.len(), 2);
+        assert_eq!(levels[0]["fidelity"], "bit");
+        assert_eq!(levels[0]["renderer_cycles"], levels[1]["renderer_cycles"]);
+        assert_eq!(levels[0]["digest"], levels[1]["digest"]);
+        assert!(levels[0]["renderer_cycles"].as_u64().unwrap() > 50_000);
+        assert_eq!(s["shooters"].as_array().unwrap().len(), 1);
+    }
     assert_eq!(v["levels_agree"], true);
-    assert!(levels[0]["renderer_cycles"].as_u64().unwrap() > 5_000);
 }
 
 #[test]

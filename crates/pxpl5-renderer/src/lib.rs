@@ -8,7 +8,6 @@
 //!   which the property tests in `tests/equivalence.rs` check on random command streams.
 //! - [`qee`] fixes the QEE's exact semantics and its documented result-cut rule.
 //! - [`PixelLayout`] allocates named fields in pixel memory; [`readback`] packs ring words.
-//! - [`workload`] is the fixed hemisphere-like command mix of `pxpl5 bench renderer`.
 //!
 //! This crate knows nothing of the ring, GPs or programs: a readback names its destination node
 //! only as an opaque number, and time is the board's own count of Renderer cycles.
@@ -20,7 +19,6 @@ pub mod engine;
 mod layout;
 pub mod qee;
 pub mod readback;
-pub mod workload;
 
 pub use board::{
     Board, BoardImage, BoardStats, CommandError, Executed, Fidelity, KindStats, ReadbackWords,

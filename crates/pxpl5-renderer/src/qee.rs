@@ -262,6 +262,19 @@ impl Streams {
 mod tests {
     use super::*;
 
+    #[test]
+    fn substitution_matches_direct_evaluation() {
+        let q = [0.3, -0.7, 0.11, 0.5, -0.25, 0.9];
+        let (k, m) = (1.0 / 64.0, (0.5 - 64.0) / 64.0);
+        let p = substitute_affine(q, k, m);
+        for (s, t) in [(0.0, 0.0), (10.0, 100.0), (127.0, 63.0)] {
+            let (u, v) = (k * s + m, k * t + m);
+            let direct = q[0] * u + q[1] * v + q[2] + q[3] * u * u + q[4] * u * v + q[5] * v * v;
+            let pix = p[0] * s + p[1] * t + p[2] + p[3] * s * s + p[4] * s * t + p[5] * t * t;
+            assert!((direct - pix).abs() < 1e-12, "{direct} vs {pix}");
+        }
+    }
+
     const FMT: FixedFormat = FixedFormat {
         int_bits: 13,
         frac_bits: 18,

@@ -1,8 +1,8 @@
 //! Progressive radiosity on the simulated Pixel-Planes 5: the scene format ([`scene`]), scenes and
-//! meshing ([`scenes`],
-//! [`mesh`]), exact point-to-polygon form factors ([`exact`]), the hemisphere and hemicube views
+//! meshing ([`scenes`], [`mesh`]), exact point-to-polygon form factors ([`exact`]), the hemisphere and hemicube views
 //! as GP code ([`views`]), one shot's form factors on the machine ([`shot`]), the programs the
-//! machine runs ([`program`]), and host reference solutions ([`solver`]).
+//! machine runs ([`program`]), host reference solutions ([`solver`]), and the Renderer command
+//! stream of a few shots that the benchmarks time ([`stream`]).
 
 pub mod exact;
 pub mod mesh;
@@ -11,4 +11,5 @@ pub mod scene;
 pub mod scenes;
 pub mod shot;
 pub mod solver;
+pub mod stream;
 pub mod views;

@@ -14,7 +14,6 @@ use std::collections::BTreeMap;
 use std::rc::Rc;
 
 use pxpl5_geom::DVec3;
-use pxpl5_geom::plane::bounding_diagonal;
 use pxpl5_machine::{Gp, GpFuture, Op, Payload, Program, ProgramError, Unit};
 use pxpl5_sim::Tick;
 
@@ -229,8 +228,7 @@ pub struct RadiosityProgram {
 
 impl RadiosityProgram {
     pub fn new(patches: Vec<Patch>, options: FfOptions, shots: usize, threshold: f64) -> Self {
-        let all: Vec<DVec3> = patches.iter().flat_map(|p| p.vertices.clone()).collect();
-        let scale = bounding_diagonal(&all).max(f64::MIN_POSITIVE);
+        let scale = crate::stream::scene_scale(&patches);
         let solution = Solution {
             radiosity: patches.iter().map(|p| p.emission).collect(),
             unshot: patches.iter().map(|p| p.emission).collect(),
