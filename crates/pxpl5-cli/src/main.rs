@@ -62,7 +62,7 @@ enum ConfigCommand {
         files: Vec<PathBuf>,
     },
     /// Print the effective config (every default resolved), each field annotated with its
-    /// provenance: [paper], [seed], [lineage] or [assumed]. Without FILE, the embedded seed
+    /// provenance: `[paper]`, `[seed]`, `[lineage]` or `[assumed]`. Without FILE, the embedded seed
     /// machine.
     Show {
         /// A machine config file (RON); default: the embedded seed-tr89-002.
