@@ -386,6 +386,11 @@ fn logs_go_to_stderr_at_the_level_asked_and_leave_stdout_alone() {
     let err = text(&info.stderr);
     assert!(err.contains("simulation ends"), "{err}");
     assert_eq!(results(&info), results(&plain));
+    // -vv (debug) shows the machine run's span when it closes.
+    let debug = run_small_logged(&d, &["-vv"], None);
+    let err = text(&debug.stderr);
+    assert!(err.contains("DEBUG") && err.contains("machine{"), "{err}");
+    assert_eq!(results(&debug), results(&plain));
     let silenced = run_small_logged(&d, &["-v"], Some("error"));
     assert_eq!(text(&silenced.stderr), "");
 
