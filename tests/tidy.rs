@@ -1,17 +1,32 @@
 //! Tidy rules, run by the normal test command (after rust-analyzer's tidy test):
 //!
 //! - every `.rs` file of the project starts with a `//!` doc saying what it is for;
+//! - no test expects a panic with `#[should_panic]`: a user's mistake is an error, so tests assert
+//!   the error (`Result`), and a bug check that must be testable gets a `try_` form that returns
+//!   one;
 //! - crate dependencies follow the table in ARCHITECTURE.md (section "Dependency rules"): each
 //!   crate of `crates/` and `programs/` may depend only on the project crates its row lists, and
 //!   every such crate has a row;
-//! - only the crates ARCHITECTURE.md names may depend on `serde` or `ron` (the config schema is the
-//!   one place that knows the file format).
+//! - only the crates ARCHITECTURE.md names may depend on a file-format crate (`serde`,
+//!   `serde_json`, `ron`, `toml`): each has a row in its `tidy:format-crates` table;
+//! - every crate's manifest takes the workspace's lints (`[lints] workspace = true`).
+//!
+//! Each check also asserts that it found what it checks (files, crates, manifests, table rows),
+//! so that a moved directory or a renamed table fails instead of passing on nothing.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fs;
 use std::path::{Path, PathBuf};
 
 use pxpl5_tests::workspace_root;
+
+/// The crates of `crates/` and `programs/` (7 + 2): fewer found means the scan is broken.
+const MIN_CRATES: usize = 9;
+/// Rust files of `crates/`, `programs/` and `tests/` (70 when this was written; a floor with room
+/// for files merged by a refactor, far above what a broken scan finds).
+const MIN_RUST_FILES: usize = 50;
+/// The file-format crates: each must have a row in ARCHITECTURE.md's `tidy:format-crates` table.
+const FORMAT_CRATES: [&str; 4] = ["serde", "serde_json", "ron", "toml"];
 
 fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
     let Ok(entries) = fs::read_dir(dir) else {
@@ -31,14 +46,27 @@ fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
     }
 }
 
-#[test]
-fn every_rust_file_starts_with_a_module_doc() {
+/// Every `.rs` file of `crates/`, `programs/` and `tests/`, at least [`MIN_RUST_FILES`].
+fn project_rust_files() -> Vec<PathBuf> {
     let root = workspace_root();
     let mut files = Vec::new();
     for dir in ["crates", "programs", "tests"] {
+        let before = files.len();
         rust_files(&root.join(dir), &mut files);
+        assert!(files.len() > before, "found no .rs file under {dir}/");
     }
-    assert!(files.len() > 10, "found only {} files", files.len());
+    assert!(
+        files.len() >= MIN_RUST_FILES,
+        "found only {} .rs files (expected at least {MIN_RUST_FILES})",
+        files.len()
+    );
+    files
+}
+
+#[test]
+fn every_rust_file_starts_with_a_module_doc() {
+    let root = workspace_root();
+    let files = project_rust_files();
     let missing: Vec<String> = files
         .iter()
         .filter(|f| {
@@ -55,6 +83,28 @@ fn every_rust_file_starts_with_a_module_doc() {
     );
 }
 
+#[test]
+fn no_test_expects_a_panic() {
+    let root = workspace_root();
+    // Spelt in two pieces so that this file does not match itself.
+    let attribute = format!("#[{}_panic", "should");
+    let mut found = Vec::new();
+    for f in project_rust_files() {
+        let text = fs::read_to_string(&f).unwrap_or_default();
+        for (i, line) in text.lines().enumerate() {
+            if line.trim_start().starts_with(&attribute) {
+                let path = f.strip_prefix(&root).unwrap_or(&f).display().to_string();
+                found.push(format!("{path}:{}", i + 1));
+            }
+        }
+    }
+    assert!(
+        found.is_empty(),
+        "tests must assert the error (a Result), not expect a panic with {attribute}]:\n  {}",
+        found.join("\n  ")
+    );
+}
+
 /// The rows of the markdown table between `<!-- tidy:NAME -->` and `<!-- /tidy:NAME -->` in
 /// ARCHITECTURE.md: first cell -> the comma-separated names of the second.
 fn architecture_table(name: &str) -> BTreeMap<String, BTreeSet<String>> {
@@ -67,7 +117,8 @@ fn architecture_table(name: &str) -> BTreeMap<String, BTreeSet<String>> {
         .and_then(|(_, rest)| rest.split_once(&end))
         .map(|(body, _)| body)
         .unwrap_or_else(|| panic!("ARCHITECTURE.md has no {start} ... {end} table"));
-    body.lines()
+    let rows: BTreeMap<String, BTreeSet<String>> = body
+        .lines()
         .filter(|l| l.trim_start().starts_with('|') && !l.contains("---"))
         .skip(1) // the header row
         .map(|l| {
@@ -84,42 +135,91 @@ fn architecture_table(name: &str) -> BTreeMap<String, BTreeSet<String>> {
                 .unwrap_or_default();
             (clean(cells[0]), allowed)
         })
-        .collect()
+        .collect();
+    assert!(
+        !rows.is_empty(),
+        "ARCHITECTURE.md's {start} table has no rows"
+    );
+    rows
 }
 
-/// Every crate of crates/ and programs/: name -> its normal dependencies.
-fn crates() -> BTreeMap<String, BTreeSet<String>> {
+/// The package a dependency entry names: its key, or `package = "..."` when renamed.
+fn package_name(key: &str, entry: &toml::Value) -> String {
+    entry
+        .get("package")
+        .and_then(|p| p.as_str())
+        .unwrap_or(key)
+        .to_string()
+}
+
+/// The manifests of every crate: `crates/*`, `programs/*` and `tests/`.
+fn crate_manifests() -> Vec<PathBuf> {
     let root = workspace_root();
-    let mut out = BTreeMap::new();
+    let mut out = Vec::new();
     for dir in ["crates", "programs"] {
         let Ok(entries) = fs::read_dir(root.join(dir)) else {
             continue;
         };
-        for e in entries.flatten() {
-            let manifest = e.path().join("Cargo.toml");
-            let Ok(text) = fs::read_to_string(&manifest) else {
-                continue;
-            };
-            let doc: toml::Table = text
-                .parse()
-                .unwrap_or_else(|err| panic!("{}: {err}", manifest.display()));
-            let name = doc["package"]["name"].as_str().unwrap().to_string();
-            let deps = doc
-                .get("dependencies")
-                .and_then(|d| d.as_table())
-                .map(|t| t.keys().cloned().collect())
-                .unwrap_or_default();
-            out.insert(name, deps);
-        }
+        let mut found: Vec<PathBuf> = entries
+            .flatten()
+            .map(|e| e.path().join("Cargo.toml"))
+            .filter(|m| m.is_file())
+            .collect();
+        found.sort();
+        out.extend(found);
     }
+    out.push(root.join("tests/Cargo.toml"));
+    assert!(
+        out.len() > MIN_CRATES,
+        "found only {} crate manifests (expected at least {})",
+        out.len(),
+        MIN_CRATES + 1
+    );
+    out
+}
+
+fn parse_manifest(manifest: &Path) -> toml::Table {
+    let text =
+        fs::read_to_string(manifest).unwrap_or_else(|err| panic!("{}: {err}", manifest.display()));
+    text.parse()
+        .unwrap_or_else(|err| panic!("{}: {err}", manifest.display()))
+}
+
+/// Every crate of crates/ and programs/: name -> the packages of its normal dependencies.
+fn crates() -> BTreeMap<String, BTreeSet<String>> {
+    let root = workspace_root();
+    let mut out = BTreeMap::new();
+    for manifest in crate_manifests() {
+        if manifest.parent() == Some(root.join("tests").as_path()) {
+            continue;
+        }
+        let doc = parse_manifest(&manifest);
+        let name = doc["package"]["name"].as_str().unwrap().to_string();
+        let deps = doc
+            .get("dependencies")
+            .and_then(|d| d.as_table())
+            .map(|t| t.iter().map(|(k, v)| package_name(k, v)).collect())
+            .unwrap_or_default();
+        out.insert(name, deps);
+    }
+    assert!(
+        out.len() >= MIN_CRATES,
+        "found only {} crates in crates/ and programs/ (expected at least {MIN_CRATES})",
+        out.len()
+    );
     out
 }
 
 #[test]
 fn crate_dependencies_follow_architecture_md() {
     let rules = architecture_table("dependencies");
-    let mut problems = Vec::new();
-    for (name, deps) in crates() {
+    let crates = crates();
+    let mut problems: Vec<String> = rules
+        .keys()
+        .filter(|name| !crates.contains_key(*name))
+        .map(|name| format!("ARCHITECTURE.md's dependency table names {name}, which is no crate"))
+        .collect();
+    for (name, deps) in crates {
         let Some(allowed) = rules.get(&name) else {
             problems.push(format!(
                 "{name} has no row in ARCHITECTURE.md's dependency table"
@@ -138,16 +238,72 @@ fn crate_dependencies_follow_architecture_md() {
 }
 
 #[test]
-fn only_the_config_crate_knows_the_file_format() {
+fn only_the_crates_architecture_md_names_use_a_file_format_crate() {
     let rules = architecture_table("format-crates");
+    let crates = crates();
     let mut problems = Vec::new();
-    for (name, deps) in crates() {
-        for format_crate in ["serde", "ron", "toml"] {
-            let allowed = rules.get(format_crate).cloned().unwrap_or_default();
-            if deps.contains(format_crate) && !allowed.contains(&name) {
-                problems.push(format!("{name} depends on {format_crate}"));
+    for format_crate in FORMAT_CRATES {
+        if !rules.contains_key(format_crate) {
+            problems.push(format!(
+                "ARCHITECTURE.md's format-crates table has no row for {format_crate}"
+            ));
+        }
+    }
+    // Every row is enforced, including format crates added to the table later.
+    for (format_crate, allowed) in &rules {
+        for name in allowed.iter().filter(|n| !crates.contains_key(*n)) {
+            problems.push(format!(
+                "ARCHITECTURE.md allows {format_crate} in {name}, which is no crate"
+            ));
+        }
+        for (name, deps) in &crates {
+            if deps.contains(format_crate) && !allowed.contains(name) {
+                problems.push(format!(
+                    "{name} depends on {format_crate}, which ARCHITECTURE.md does not allow"
+                ));
             }
         }
     }
     assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+#[test]
+fn every_crate_takes_the_workspace_lints() {
+    let root = workspace_root();
+    let workspace = parse_manifest(&root.join("Cargo.toml"));
+    let lints = workspace
+        .get("workspace")
+        .and_then(|w| w.get("lints"))
+        .expect("the workspace Cargo.toml has [workspace.lints]");
+    assert_eq!(
+        lints
+            .get("rust")
+            .and_then(|r| r.get("unsafe_code"))
+            .and_then(|v| v.as_str()),
+        Some("forbid"),
+        "[workspace.lints.rust] must forbid unsafe_code"
+    );
+    let mut problems = Vec::new();
+    for manifest in crate_manifests() {
+        let doc = parse_manifest(&manifest);
+        let takes_workspace = doc
+            .get("lints")
+            .and_then(|l| l.get("workspace"))
+            .and_then(|w| w.as_bool())
+            == Some(true);
+        if !takes_workspace {
+            problems.push(
+                manifest
+                    .strip_prefix(&root)
+                    .unwrap_or(&manifest)
+                    .display()
+                    .to_string(),
+            );
+        }
+    }
+    assert!(
+        problems.is_empty(),
+        "these manifests lack `[lints] workspace = true`:\n  {}",
+        problems.join("\n  ")
+    );
 }

@@ -4,15 +4,23 @@
 use std::path::{Path, PathBuf};
 
 use pxpl5_config::{ConfigError, MachineConfig};
+use tracing::field;
 
 use crate::UserError;
 
-/// The config of `--config FILE`, or the embedded seed machine.
+/// The config of `--config FILE`, or the embedded seed machine. Its name and hash are recorded
+/// in the current span (the command's, see `main`).
 pub fn load(file: Option<&Path>) -> Result<MachineConfig, UserError> {
-    match file {
-        None => Ok(pxpl5_config::default_config()),
-        Some(path) => pxpl5_config::load_file(path).map_err(report),
+    let cfg = match file {
+        None => pxpl5_config::default_config(),
+        Some(path) => pxpl5_config::load_file(path).map_err(report)?,
+    };
+    let span = tracing::Span::current();
+    if !span.is_disabled() {
+        span.record("config", field::display(&cfg.name));
+        span.record("hash", field::display(pxpl5_config::config_hash(&cfg)));
     }
+    Ok(cfg)
 }
 
 /// A config error as the user sees it: miette's report (source line, column marker, help).

@@ -8,9 +8,13 @@
 //! Exit codes: 0 success; 2 a user's mistake (bad config, bad flag, unwritable output), reported
 //! with the file, line or field at fault; 1 anything else. The simulator never panics on user
 //! input; a panic is a simulator bug.
+//!
+//! Results go to stdout; the simulator's own logs (`-v`, `-q`, `RUST_LOG`: see [`logging`]) and
+//! error messages go to stderr.
 
 mod bench;
 mod config_cmd;
+mod logging;
 mod radiosity;
 mod run;
 
@@ -28,8 +32,29 @@ use clap::{Parser, Subcommand};
 #[derive(Parser)]
 #[command(name = "pxpl5", version, propagate_version = true)]
 struct Cli {
+    /// Log more on stderr: -v info (each simulation's start and end), -vv debug, -vvv trace.
+    /// Default: warnings and errors. RUST_LOG, when set, overrides -v and -q.
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    verbose: u8,
+    /// Log only errors on stderr. Results on stdout are unchanged.
+    #[arg(short, long, global = true, conflicts_with = "verbose")]
+    quiet: bool,
     #[command(subcommand)]
     command: Option<Command>,
+}
+
+impl Command {
+    /// The subcommand's name as the user types it.
+    fn name(&self) -> &'static str {
+        match self {
+            Command::Config(ConfigCommand::Check { .. }) => "config check",
+            Command::Config(ConfigCommand::Show { .. }) => "config show",
+            Command::Radiosity(_) => "radiosity",
+            Command::Formfactor(_) => "formfactor",
+            Command::Run(_) => "run",
+            Command::Bench(BenchCommand::Renderer(_)) => "bench renderer",
+        }
+    }
 }
 
 #[derive(Subcommand)]
@@ -63,7 +88,7 @@ enum ConfigCommand {
         files: Vec<PathBuf>,
     },
     /// Print the effective config (every default resolved), each field annotated with its
-    /// provenance: [paper], [seed], [lineage] or [assumed]. Without FILE, the embedded seed
+    /// provenance: `[paper]`, `[seed]`, `[lineage]` or `[assumed]`. Without FILE, the embedded seed
     /// machine.
     Show {
         /// A machine config file (RON); default: the embedded seed-tr89-002.
@@ -91,7 +116,28 @@ impl<E: std::fmt::Display> From<E> for UserError {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let result = match cli.command {
+    let result = logging::init(cli.verbose, cli.quiet).and_then(|()| run_command(cli.command));
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(UserError(message)) => {
+            eprintln!("{message}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+/// Run one subcommand inside its span (`config` and `hash` are recorded when the command loads
+/// its machine config: `config_cmd::load`).
+fn run_command(command: Option<Command>) -> Result<(), UserError> {
+    let name = command.as_ref().map_or("radiosity", Command::name);
+    let span = tracing::info_span!(
+        "pxpl5",
+        command = %name,
+        config = tracing::field::Empty,
+        hash = tracing::field::Empty
+    );
+    let _entered = span.enter();
+    match command {
         None => radiosity::radiosity(&radiosity::RadiosityArgs::defaults()),
         Some(Command::Config(ConfigCommand::Check { files })) => config_cmd::check(&files),
         Some(Command::Config(ConfigCommand::Show { file })) => config_cmd::show(file.as_deref()),
@@ -99,12 +145,5 @@ fn main() -> ExitCode {
         Some(Command::Run(args)) => run::run(&args),
         Some(Command::Radiosity(args)) => radiosity::radiosity(&args),
         Some(Command::Formfactor(args)) => radiosity::formfactor(&args),
-    };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(UserError(message)) => {
-            eprintln!("{message}");
-            ExitCode::from(2)
-        }
     }
 }

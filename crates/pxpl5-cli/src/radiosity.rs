@@ -6,12 +6,11 @@ use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::rc::Rc;
-use std::time::Instant;
 
 use clap::Args;
 use pxpl5_config::MachineConfig;
 use pxpl5_geom::DVec3;
-use pxpl5_machine::{Machine, Recorder, RunOptions, RunStats};
+use pxpl5_machine::{Recorder, RunOptions, RunStats};
 use pxpl5_polygons::scene::{Camera, Triangle, TriangleScene};
 use pxpl5_radiosity::mesh::{Patch, mesh};
 use pxpl5_radiosity::program::{FormFactorProgram, FormFactorResult, RadiosityProgram, Solution};
@@ -22,7 +21,7 @@ use pxpl5_renderer::Fidelity;
 
 use crate::UserError;
 use crate::config_cmd;
-use crate::run::{TraceArgs, png_bytes, probe_writable, write_atomic};
+use crate::run::{TraceArgs, png_bytes, probe_writable, simulate, write_atomic};
 
 /// Options of `pxpl5 radiosity`.
 #[derive(Args, Clone, Debug)]
@@ -149,13 +148,8 @@ fn run_method(
         fidelity,
         max_time: pxpl5_sim::Tick(1_000_000_000_000_000),
     };
-    let t0 = Instant::now();
-    let result = Machine::new(cfg, &program, options, recorder)
-        .map_err(UserError::from)?
-        .run()
-        .map_err(UserError::from)?;
+    let (result, host_seconds) = simulate(cfg, &program, options, recorder)?;
     let solution = program.solution.borrow().clone();
-    let host_seconds = t0.elapsed().as_secs_f64();
     for (shot, buffers) in program.item_buffers.borrow().iter() {
         for b in buffers.borrow().iter() {
             let path = args
@@ -217,11 +211,11 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
     };
     let mut runs = Vec::new();
     for m in methods {
-        eprintln!(
-            "running {} ({} patches, up to {} shots)...",
-            m.name(),
-            patches.len(),
-            args.shots
+        tracing::info!(
+            method = %m.name(),
+            patches = patches.len(),
+            max_shots = args.shots,
+            "form-factor method starts"
         );
         let recorder = args.traces.recorder()?;
         runs.push(run_method(&cfg, &patches, args, m, fidelity, recorder)?);
@@ -447,10 +441,7 @@ fn render(
     }
     let tscene = TriangleScene { camera, triangles };
     let program = pxpl5_polygons::Polygons::new(tscene);
-    let result = Machine::new(cfg, &program, RunOptions::default(), Recorder::default())
-        .map_err(UserError::from)?
-        .run()
-        .map_err(UserError::from)?;
+    let (result, _) = simulate(cfg, &program, RunOptions::default(), Recorder::default())?;
     Ok(result.frame)
 }
 
@@ -535,10 +526,7 @@ pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
         },
         result: result.clone(),
     };
-    let run = Machine::new(&cfg, &program, RunOptions::default(), Recorder::default())
-        .map_err(UserError::from)?
-        .run()
-        .map_err(UserError::from)?;
+    let (run, _) = simulate(&cfg, &program, RunOptions::default(), Recorder::default())?;
     let f = result.borrow().form_factors[0];
     let renderer: u64 = run.stats.renderers.iter().map(|r| r.busy.0).sum();
     println!(

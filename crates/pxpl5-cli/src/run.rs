@@ -10,7 +10,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::Args;
-use pxpl5_machine::{Frame, Machine, Recorder, RunOptions};
+use pxpl5_config::MachineConfig;
+use pxpl5_machine::{Frame, Machine, Program, Recorder, RunOptions, RunResult};
 use pxpl5_polygons::{Polygons, scenes};
 use pxpl5_renderer::Fidelity;
 use pxpl5_trace::{TraceWindow, parse_time};
@@ -73,10 +74,7 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
 
     let program = Polygons::new(scene);
     let options = RunOptions { fidelity, max_time };
-    let t0 = Instant::now();
-    let machine = Machine::new(&cfg, &program, options, recorder).map_err(UserError::from)?;
-    let result = machine.run().map_err(UserError::from)?;
-    let host_seconds = t0.elapsed().as_secs_f64();
+    let (result, host_seconds) = simulate(&cfg, &program, options, recorder)?;
 
     let stats = &result.stats;
     let mut json = serde_json::to_string_pretty(&stats.to_json()).map_err(UserError::from)?;
@@ -110,6 +108,35 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
         args.out.display()
     );
     Ok(())
+}
+
+/// Build the machine of `cfg`, run `program` on it to completion, and return the result with the
+/// host seconds both took. Logs the run's start and end (simulated time, host seconds) at info
+/// level.
+pub fn simulate(
+    cfg: &MachineConfig,
+    program: &dyn Program,
+    options: RunOptions,
+    recorder: Recorder,
+) -> Result<(RunResult, f64), UserError> {
+    tracing::info!(
+        program = %program.name(),
+        fidelity = %options.fidelity.name(),
+        "simulation starts"
+    );
+    let t0 = Instant::now();
+    let result = Machine::new(cfg, program, options, recorder)
+        .map_err(UserError::from)?
+        .run()
+        .map_err(UserError::from)?;
+    let host_seconds = t0.elapsed().as_secs_f64();
+    tracing::info!(
+        program = %program.name(),
+        simulated_ms = %format!("{:.6}", result.stats.end.as_secs_f64() * 1e3),
+        host_s = %format!("{host_seconds:.3}"),
+        "simulation ends"
+    );
+    Ok((result, host_seconds))
 }
 
 /// The trace options every simulating subcommand takes.

@@ -332,3 +332,85 @@ fn formfactor_exact_and_on_the_machine() {
     assert_eq!(out.status.code(), Some(2));
     assert!(text(&out.stderr).contains("--point"));
 }
+
+/// `pxpl5 run` on the small scene with `flags`, writing to `out`, with `RUST_LOG` set to
+/// `rust_log` (or unset).
+fn run_small_logged(out: &std::path::Path, flags: &[&str], rust_log: Option<&str>) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_pxpl5"));
+    cmd.args(flags)
+        .args([
+            "run",
+            "--config",
+            "machine-configs/minimal.ron",
+            "--scene",
+            "programs/polygons/scenes/small.ron",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .current_dir(root());
+    match rust_log {
+        Some(filter) => cmd.env("RUST_LOG", filter),
+        None => cmd.env_remove("RUST_LOG"),
+    };
+    cmd.output().expect("pxpl5 runs")
+}
+
+/// Stdout without the line of host figures, which vary from run to run.
+fn results(out: &Output) -> String {
+    text(&out.stdout)
+        .lines()
+        .filter(|l| !l.starts_with("host: "))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+#[test]
+fn logs_go_to_stderr_at_the_level_asked_and_leave_stdout_alone() {
+    let d = out_dir("logs");
+    let plain = run_small_logged(&d, &[], None);
+    assert!(plain.status.success(), "{}", text(&plain.stderr));
+    assert_eq!(text(&plain.stderr), "", "a default run logs only warnings");
+    assert!(results(&plain).contains("triangles per simulated second"));
+
+    // -v: info lines on stderr (the command's span with the config, each simulation's start and
+    // end); stdout exactly as without it.
+    let verbose = run_small_logged(&d, &["-v"], None);
+    assert!(verbose.status.success(), "{}", text(&verbose.stderr));
+    let err = text(&verbose.stderr);
+    assert!(
+        err.contains("INFO") && err.contains("simulation ends") && err.contains("config=minimal"),
+        "{err}"
+    );
+    assert!(!err.contains("DEBUG"), "{err}");
+    assert_eq!(results(&verbose), results(&plain));
+
+    // -q: nothing on stderr for a successful run.
+    let quiet = run_small_logged(&d, &["-q"], None);
+    assert!(quiet.status.success());
+    assert_eq!(text(&quiet.stderr), "");
+    assert_eq!(results(&quiet), results(&plain));
+
+    // RUST_LOG overrides the flags: info without -v, error silences -v.
+    let info = run_small_logged(&d, &[], Some("info"));
+    let err = text(&info.stderr);
+    assert!(err.contains("simulation ends"), "{err}");
+    assert_eq!(results(&info), results(&plain));
+    // -vv (debug) shows the machine run's span when it closes.
+    let debug = run_small_logged(&d, &["-vv"], None);
+    let err = text(&debug.stderr);
+    assert!(err.contains("DEBUG") && err.contains("machine{"), "{err}");
+    assert_eq!(results(&debug), results(&plain));
+    let silenced = run_small_logged(&d, &["-v"], Some("error"));
+    assert_eq!(text(&silenced.stderr), "");
+
+    // A bad filter is the user's mistake; -v with -q is a usage error.
+    let bad = run_small_logged(&d, &[], Some("[[["));
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(
+        text(&bad.stderr).contains("RUST_LOG"),
+        "{}",
+        text(&bad.stderr)
+    );
+    let both = run_small_logged(&d, &["-v", "-q"], None);
+    assert_eq!(both.status.code(), Some(2));
+}

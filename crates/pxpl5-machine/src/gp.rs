@@ -42,7 +42,8 @@ impl std::fmt::Display for Unit {
     }
 }
 
-/// What a message carries. Its size on the ring is [`Payload::words`].
+/// What a message carries. Its size on the ring is counted by the machine: each command's
+/// encoding, the readback's packed words, or the program's declared word count.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Payload {
     /// IGC commands for a Renderer, executed in order.

@@ -279,6 +279,9 @@ impl Machine {
 
     /// Run the program to completion.
     pub fn run(mut self) -> Result<RunResult, RunError> {
+        let _span =
+            tracing::debug_span!("machine", program = %self.program, config = %self.cfg.name)
+                .entered();
         let renderer_cycle = self
             .renderers
             .first()

@@ -47,7 +47,7 @@ pub enum Bit {
 }
 
 /// Any boolean function of two bits, as its truth table: bit `(a << 1) | b` of the table is the
-/// result for inputs a, b. One ALU step ([assumed] 1 cycle, `cycles.logic`).
+/// result for inputs a, b. One ALU step (\[assumed\] 1 cycle, `cycles.logic`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct LogicOp(pub u8);
 
@@ -254,7 +254,7 @@ impl Command {
         }
     }
 
-    /// Ring words of this command's encoding ([assumed]: the IGC's format is not published). One
+    /// Ring words of this command's encoding (\[assumed\]: the IGC's format is not published). One
     /// opcode word carries the kind and every small operand (field offsets and widths, flags,
     /// window, comparison, combine op); then the QEE coefficients (3 for a linear expression, 6
     /// for a quadratic), each `ceil(coefficient_bits / word_bits)` words; a constant's

@@ -7,9 +7,9 @@
 //!     V(x, y) = A x + B y + C + D x^2 + E x y + F y^2
 //! ```
 //!
-//! where A..F are the *raw* integers of the coefficients in the configured
-//! [`FixedFormat`](pxpl5_config::FixedFormat) (value = raw / 2^frac_bits), so V is an exact integer
-//! in units of 2^-frac_bits. Linear expressions are the case D = E = F = 0.
+//! where A..F are the *raw* integers of the coefficients in the configured [`FixedFormat`]
+//! (value = raw / 2^frac_bits), so V is an exact integer in units of 2^-frac_bits. Linear
+//! expressions are the case D = E = F = 0.
 //!
 //! **The result window (the documented cut rule).** A command asks for `bits` result bits starting
 //! at bit `shift` of V. The tree delivers V bit-serially, least significant bit first, one bit per
@@ -20,10 +20,10 @@
 //! floor(V / 2^shift) whenever that fits in `bits` bits; choosing a window wide enough is the
 //! program's job (its GP knows the coefficients and the region).
 //!
-//! **The tree, as the bit-level model builds it** ([assumed]: the hardware's internal structure is
-//! not published; what is fixed is that each pixel receives its exact value bit-serially,
-//! [lineage]). The QEE is three serial-parallel trees whose outputs each pixel adds with its own
-//! serial adders:
+//! **The tree, as the bit-level model builds it** (\[assumed\]: the hardware's internal structure
+//! is not published; what is fixed is that each pixel receives its exact value bit-serially,
+//! \[lineage\]). The QEE is three serial-parallel trees whose outputs each pixel adds with its
+//! own serial adders:
 //! - the x-tree puts `X(x) = A x + D x^2` on every column line;
 //! - the y-tree puts `Y(y) = C + B y + F y^2` on every row line;
 //! - the cross stage puts `Z(x, y) = (E y) x` on every pixel (a per-row x-tree fed with E y);

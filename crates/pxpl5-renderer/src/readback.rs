@@ -2,14 +2,14 @@
 //!
 //! A readback sends a field of a rectangle of pixels, row by row (array row `rect.y` first, then
 //! upward; each row left to right),
-//! as ring words of `word_bits` bits ([seed]: 32):
+//! as ring words of `word_bits` bits (\[seed\]: 32):
 //!
 //! - a field of `bits <= word_bits` packs `k = floor(word_bits / bits)` pixels per word, pixel i of
 //!   the stream in bits `(i mod k) * bits ..` of word `i / k`, least significant first; the last
 //!   word is padded with zeros. A 16-bit patch ID thus costs half a word per pixel;
 //! - a wider field takes `ceil(bits / word_bits)` words per pixel, least significant word first.
 //!
-//! [assumed]: the real IGC's readback format is not published; this is the densest packing that
+//! \[assumed\]: the real IGC's readback format is not published; this is the densest packing that
 //! keeps every pixel inside whole words for narrow fields.
 
 use crate::qee::mask;

@@ -9,5 +9,5 @@
 mod queue;
 mod time;
 
-pub use queue::{ComponentId, Event, EventQueue, Priority};
+pub use queue::{ComponentId, Event, EventQueue, PastEvent, Priority};
 pub use time::{ClockDomain, ClockError, Cycles, Tick};

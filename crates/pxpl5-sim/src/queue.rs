@@ -54,6 +54,31 @@ pub enum Priority {
     Stats = 4,
 }
 
+/// An event scheduled before the queue's current time: it could never happen on time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PastEvent {
+    /// Who scheduled it.
+    pub component: ComponentId,
+    /// Its phase.
+    pub priority: Priority,
+    /// When it was to happen.
+    pub tick: Tick,
+    /// The queue's current time, after `tick`.
+    pub now: Tick,
+}
+
+impl fmt::Display for PastEvent {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{} scheduled a {:?} event at {}, before the current time {}",
+            self.component, self.priority, self.tick, self.now
+        )
+    }
+}
+
+impl std::error::Error for PastEvent {}
+
 /// One scheduled event, as popped from an [`EventQueue`].
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Event<T> {
@@ -165,7 +190,7 @@ impl<T> EventQueue<T> {
     ///
     /// If `tick` is earlier than [`EventQueue::now`]: the simulation has already passed it, so
     /// the event could never happen on time. That is a bug in the simulator, not a condition
-    /// to recover from.
+    /// to recover from ([`EventQueue::try_schedule`] reports it instead).
     pub fn schedule(
         &mut self,
         tick: Tick,
@@ -173,11 +198,27 @@ impl<T> EventQueue<T> {
         component: ComponentId,
         payload: T,
     ) -> u64 {
-        assert!(
-            tick >= self.now,
-            "{component} scheduled a {priority:?} event at {tick}, before the current time {}",
-            self.now
-        );
+        self.try_schedule(tick, priority, component, payload)
+            .unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// [`EventQueue::schedule`], returning the event in the past as an error instead of
+    /// panicking (the queue is unchanged then).
+    pub fn try_schedule(
+        &mut self,
+        tick: Tick,
+        priority: Priority,
+        component: ComponentId,
+        payload: T,
+    ) -> Result<u64, PastEvent> {
+        if tick < self.now {
+            return Err(PastEvent {
+                component,
+                priority,
+                tick,
+                now: self.now,
+            });
+        }
         let seq = self.next_seq;
         self.next_seq += 1;
         self.heap.push(Entry {
@@ -189,7 +230,7 @@ impl<T> EventQueue<T> {
             },
             payload,
         });
-        seq
+        Ok(seq)
     }
 
     /// Removes and returns the pending event with the smallest (tick, priority, component,
@@ -384,14 +425,32 @@ mod tests {
     }
 
     #[test]
-    #[should_panic(
-        expected = "component 4 scheduled a ClockEdge event at 99 ps, before the current time 100 ps"
-    )]
-    fn scheduling_in_the_past_panics() {
+    fn scheduling_in_the_past_is_an_error() {
         let mut q = EventQueue::new();
         q.schedule(Tick(100), Priority::ClockEdge, C0, ());
         q.pop();
-        q.schedule(Tick(99), Priority::ClockEdge, ComponentId(4), ());
+        let e = q
+            .try_schedule(Tick(99), Priority::ClockEdge, ComponentId(4), ())
+            .unwrap_err();
+        assert_eq!(
+            e,
+            PastEvent {
+                component: ComponentId(4),
+                priority: Priority::ClockEdge,
+                tick: Tick(99),
+                now: Tick(100),
+            }
+        );
+        assert_eq!(
+            e.to_string(),
+            "component 4 scheduled a ClockEdge event at 99 ps, before the current time 100 ps"
+        );
+        // Nothing was scheduled; the current time is still allowed.
+        assert!(q.is_empty());
+        assert_eq!(
+            q.try_schedule(Tick(100), Priority::ClockEdge, C0, ()),
+            Ok(1)
+        );
     }
 
     /// Knuth's MMIX LCG: deterministic and dependency-free, which is all a test order needs.

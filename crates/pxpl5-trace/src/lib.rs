@@ -36,7 +36,7 @@ pub use chrome::{
     TrackId,
 };
 pub use pxpl5_sim::Tick;
-pub use vcd_trace::{MAX_WIDTH, ScopeId, SignalId, VcdTrace};
+pub use vcd_trace::{MAX_WIDTH, ScopeId, SignalId, VcdTrace, WidthError};
 pub use window::{
     TimeErrorKind, TimeParseError, TraceWindow, WindowParseError, format_time, parse_time,
 };

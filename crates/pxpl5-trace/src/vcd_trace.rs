@@ -41,6 +41,27 @@ pub struct ScopeId(usize);
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct SignalId(usize);
 
+/// A wire asked for with a width no `u64` value can drive: 0, or above [`MAX_WIDTH`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct WidthError {
+    /// The wire's name.
+    pub name: String,
+    /// The width asked for.
+    pub width: u32,
+}
+
+impl fmt::Display for WidthError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "VCD wire `{}` has width {}; expected 1 to {MAX_WIDTH} bits",
+            self.name, self.width
+        )
+    }
+}
+
+impl std::error::Error for WidthError {}
+
 #[derive(Debug)]
 struct Scope {
     name: String,
@@ -110,12 +131,26 @@ impl VcdTrace {
     /// # Panics
     ///
     /// If `width` is 0 or above [`MAX_WIDTH`]: widths come from the simulator's code, never from
-    /// its user, so a bad one is a bug to stop at.
+    /// its user, so a bad one is a bug to stop at ([`VcdTrace::try_wire`] reports it instead).
     pub fn wire(&mut self, scope: ScopeId, name: &str, width: u32) -> SignalId {
-        assert!(
-            (1..=MAX_WIDTH).contains(&width),
-            "VCD wire `{name}` has width {width}; expected 1 to {MAX_WIDTH} bits"
-        );
+        self.try_wire(scope, name, width)
+            .unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// [`VcdTrace::wire`], returning a width of 0 or above [`MAX_WIDTH`] as an error instead of
+    /// panicking (the trace is unchanged then).
+    pub fn try_wire(
+        &mut self,
+        scope: ScopeId,
+        name: &str,
+        width: u32,
+    ) -> Result<SignalId, WidthError> {
+        if !(1..=MAX_WIDTH).contains(&width) {
+            return Err(WidthError {
+                name: name.to_owned(),
+                width,
+            });
+        }
         let id = SignalId(self.signals.len());
         self.signals.push(Signal {
             name: name.to_owned(),
@@ -124,7 +159,7 @@ impl VcdTrace {
             changes: Vec::new(),
         });
         self.scopes[scope.0].signals.push(id.0);
-        id
+        Ok(id)
     }
 
     /// Records that `signal` takes `value` at `at`. Bits above the wire's width are dropped, as

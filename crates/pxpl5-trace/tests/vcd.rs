@@ -2,7 +2,7 @@
 //! values at the right times; output is deterministic; the window folds and drops changes.
 
 use pxpl5_sim::Tick;
-use pxpl5_trace::{TraceWindow, VcdTrace};
+use pxpl5_trace::{TraceWindow, VcdTrace, WidthError};
 use vcd::{Command, IdCode, ScopeItem, TimescaleUnit, Value};
 
 /// What a parsed VCD says: the header's (scope, wire, width, id) in order, and every value
@@ -331,9 +331,24 @@ fn empty_trace_is_valid() {
 }
 
 #[test]
-#[should_panic(expected = "expected 1 to 64 bits")]
-fn zero_width_is_a_bug() {
+fn a_width_outside_1_to_64_is_an_error() {
     let mut t = VcdTrace::default();
     let s = t.scope("top");
-    t.wire(s, "nothing", 0);
+    for width in [0, 65] {
+        let e = t.try_wire(s, "nothing", width).unwrap_err();
+        assert_eq!(
+            e,
+            WidthError {
+                name: "nothing".to_string(),
+                width,
+            }
+        );
+        assert_eq!(
+            e.to_string(),
+            format!("VCD wire `nothing` has width {width}; expected 1 to 64 bits")
+        );
+    }
+    // Nothing was added: the trace is still empty.
+    assert!(parse(&t).wires.is_empty());
+    assert!(t.try_wire(s, "one", 1).is_ok() && t.try_wire(s, "wide", 64).is_ok());
 }

@@ -9,7 +9,7 @@
 use crate::exact::point_to_polygon;
 use crate::mesh::Patch;
 
-/// F[i][j]: from the centre of patch i to patch j (0 on the diagonal).
+/// `F[i][j]`: from the centre of patch i to patch j (0 on the diagonal).
 pub fn exact_matrix(patches: &[Patch]) -> Vec<Vec<f64>> {
     (0..patches.len()).map(|i| exact_row(patches, i)).collect()
 }
