@@ -5,9 +5,10 @@
 //! - A command message's input-queue space is freed when its *last* command completes, not when
 //!   it arrives: the commands sit in the input queue until the board has executed them, which is
 //!   what throttles GPs that send faster than the board renders (back-pressure).
-//! - A readback streams its rows in messages of at most `max_message_words` words ([assumed]
-//!   streaming), so a whole board's field never needs an output queue that large; while those
-//!   messages wait for output-queue space the board starts nothing new (its port is busy).
+//! - A readback streams its rows in messages of at most `max_message_words` words, packed by the
+//!   board (`pxpl5_renderer::readback`), so a whole board's field never needs an output queue
+//!   that large; while those messages wait for output-queue space the board starts nothing new
+//!   (its port is busy).
 //!
 //! The node is a state machine; the machine moves messages on the ring and schedules the
 //! completions.
@@ -15,7 +16,7 @@
 use std::collections::VecDeque;
 
 use pxpl5_config::RendererConfig;
-use pxpl5_renderer::{Board, Command, Fidelity, readback};
+use pxpl5_renderer::{Board, Command, Fidelity};
 use pxpl5_ring::MessageId;
 use pxpl5_sim::{ClockDomain, Tick};
 
@@ -51,8 +52,6 @@ pub(crate) struct RendererNode {
     index: u32,
     board: Board,
     clock: ClockDomain,
-    word_bits: u32,
-    max_message_words: u32,
     queue: VecDeque<QueuedCommand>,
     running: Option<Running>,
     /// Readback messages waiting for output-queue space, in order.
@@ -75,10 +74,8 @@ impl RendererNode {
     ) -> RendererNode {
         RendererNode {
             index,
-            board: Board::new(cfg, word_bits, fidelity),
+            board: Board::new(cfg, word_bits, fidelity).stream_readbacks(max_message_words),
             clock,
-            word_bits,
-            max_message_words,
             queue: VecDeque::new(),
             running: None,
             outbox: VecDeque::new(),
@@ -147,36 +144,19 @@ impl RendererNode {
         self.busy += end - start;
         self.commands += 1;
         if let Some(rb) = executed.readback {
-            let Command::Readback { field, rect, .. } = q.command else {
-                unreachable!("only a readback reads back")
-            };
+            // The board packed the messages; they travel as they are, and whoever receives one
+            // unpacks it.
             let to = Unit::decode(rb.dest);
-            let word_bits = self.word_bits;
-            let values = readback::unpack(
-                &rb.words,
-                field.bits,
-                word_bits,
-                (rect.width * rect.height) as usize,
-            );
-            let row_words = readback::words_needed(rect.width as usize, field.bits, word_bits);
-            let rows_per = (self.max_message_words as usize / row_words.max(1)).max(1);
-            for (i, rows) in values.chunks(rows_per * rect.width as usize).enumerate() {
-                let height = (rows.len() / rect.width as usize) as u32;
-                self.outbox.push_back(Outgoing {
+            self.outbox
+                .extend(rb.messages.into_iter().map(|m| Outgoing {
                     to,
                     payload: Payload::Pixels {
                         tag: rb.tag,
-                        rect: pxpl5_renderer::Rect {
-                            x: rect.x,
-                            y: rect.y + (i * rows_per) as u32,
-                            width: rect.width,
-                            height,
-                        },
-                        bits: field.bits,
-                        words: readback::pack(rows, field.bits, word_bits),
+                        rect: m.rect,
+                        bits: rb.bits,
+                        words: m.words,
                     },
-                });
-            }
+                }));
         }
         self.running = Some(Running {
             message: q.message,
