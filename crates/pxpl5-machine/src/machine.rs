@@ -43,6 +43,28 @@ enum Event {
     RendererDone(u32),
 }
 
+impl Event {
+    /// The event's class within an instant (`pxpl5_sim` pops lower classes first and gives them
+    /// no meaning; this order is the machine's):
+    /// - 0, a Renderer completed a command: it frees the Renderer (and its message's input-queue
+    ///   space) before GPs act, so a GP acting at the same instant sees it idle instead of
+    ///   waiting a cycle for nothing;
+    /// - 1, a GP's busy time ended: after every completion of the instant, so programs' decisions
+    ///   do not depend on the order in which other units happened to be processed.
+    fn priority(self) -> Priority {
+        match self {
+            Event::RendererDone(_) => Priority(0),
+            Event::GpWake(_) => Priority(1),
+        }
+    }
+
+    fn component(self) -> ComponentId {
+        match self {
+            Event::RendererDone(i) | Event::GpWake(i) => ComponentId(i),
+        }
+    }
+}
+
 /// A machine built from a config.
 pub struct Machine {
     cfg: MachineConfig,
@@ -242,8 +264,11 @@ impl Machine {
     /// GP `g` became busy until `until`: record it and schedule its wake-up.
     fn gp_busy(&mut self, g: u32, until: Tick) {
         self.recorder.gp_busy(g, self.now, until);
-        self.events
-            .schedule(until, Priority::GpResume, ComponentId(g), Event::GpWake(g));
+        self.schedule(until, Event::GpWake(g));
+    }
+
+    fn schedule(&mut self, at: Tick, e: Event) {
+        self.events.schedule(at, e.priority(), e.component(), e);
     }
 
     /// Put a message on the ring; false if the sender's output queue is full.
@@ -354,12 +379,7 @@ impl Machine {
         };
         self.recorder
             .renderer_command(r, started.kind, started.start, started.end);
-        self.events.schedule(
-            started.end,
-            Priority::RendererComplete,
-            ComponentId(r),
-            Event::RendererDone(r),
-        );
+        self.schedule(started.end, Event::RendererDone(r));
         Ok(true)
     }
 

@@ -1,9 +1,8 @@
 //! Simulated time: [`Tick`] (global, picoseconds), [`Cycles`] (one clock domain) and
 //! [`ClockDomain`], the only bridge between them.
 //!
-//! Picoseconds because every clock of the machine has an integral period in them: 40 MHz (i860,
-//! Renderer) is 25,000 ps and the seed's 20 MHz ring channel 50,000 ps. A u64 of picoseconds lasts
-//! 213 days of simulated time.
+//! Picoseconds because every clock of the simulated machine has an integral period in them: 40 MHz
+//! is 25,000 ps and 20 MHz 50,000 ps. A u64 of picoseconds lasts 213 days of simulated time.
 
 use std::fmt;
 use std::iter::Sum;
@@ -13,8 +12,8 @@ use std::ops::{Add, AddAssign, Mul, Sub};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct Tick(pub u64);
 
-/// A count of clock cycles of one clock domain (which domain is the holder's business: a
-/// Renderer's cycles are Renderer clocks).
+/// A count of clock cycles of one clock domain (which domain is the holder's business: a count
+/// of one unit's cycles is in that unit's clock).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct Cycles(pub u64);
 
