@@ -149,11 +149,6 @@ impl Machine {
         })
     }
 
-    /// The ring positions of the units, in order.
-    pub fn units(&self) -> &[Unit] {
-        &self.units
-    }
-
     /// Run the program to completion.
     pub fn run(mut self) -> Result<RunResult, RunError> {
         let renderer_cycle = self

@@ -206,7 +206,6 @@ impl Engine {
 /// One Renderer board.
 pub struct Board {
     cfg: RendererConfig,
-    fidelity: Fidelity,
     geometry: Geometry,
     word_bits: u32,
     /// Most ring words per readback message (see [`Board::stream_readbacks`]).
@@ -233,7 +232,6 @@ impl Board {
         };
         Board {
             cfg: cfg.clone(),
-            fidelity,
             geometry,
             word_bits: ring_word_bits,
             max_message_words: u32::MAX,
@@ -254,14 +252,6 @@ impl Board {
         self
     }
 
-    pub fn fidelity(&self) -> Fidelity {
-        self.fidelity
-    }
-
-    pub fn config(&self) -> &RendererConfig {
-        &self.cfg
-    }
-
     /// The cycle at which the board is free for its next command.
     pub fn now(&self) -> Cycles {
         self.now
@@ -271,11 +261,6 @@ impl Board {
     /// waiting); never moves time back.
     pub fn idle_until(&mut self, t: Cycles) {
         self.now = self.now.max(t);
-    }
-
-    /// The region origin last loaded by `SetOrigin`.
-    pub fn origin(&self) -> (u32, u32) {
-        self.origin
     }
 
     pub fn stats(&self) -> &BoardStats {
