@@ -412,7 +412,6 @@ impl Machine {
             config: self.cfg.name.clone(),
             config_hash: pxpl5_config::config_hash(&self.cfg),
             fidelity: self.options.fidelity,
-            ring_mode: "cycle",
             end,
             gps,
             renderers,
