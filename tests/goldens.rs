@@ -113,8 +113,10 @@ fn run_machine(
     let cfg = pxpl5_config::load_file(&path).expect("shipped configs are valid");
     let machine =
         Machine::new(&cfg, program, RunOptions::default(), Recorder::default()).expect("builds");
-    let units = machine.units().to_vec();
-    (machine.run().expect("runs"), units)
+    (
+        machine.run().expect("runs"),
+        pxpl5_machine::node_order(&cfg),
+    )
 }
 
 /// FNV-1a, 64 bits.

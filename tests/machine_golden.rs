@@ -53,7 +53,6 @@ pub fn text(
         config,
         config_hash,
         fidelity,
-        ring_mode,
         end,
         gps,
         renderers,
@@ -64,7 +63,7 @@ pub fn text(
     let mut out = String::new();
     writeln!(
         out,
-        "{program} on {config} (config hash {config_hash}), fidelity {}, ring model {ring_mode}",
+        "{program} on {config} (config hash {config_hash}), fidelity {}",
         fidelity.name()
     )
     .unwrap();

@@ -9,7 +9,9 @@
 //!   every such crate has a row;
 //! - only the crates ARCHITECTURE.md names may depend on a file-format crate (`serde`,
 //!   `serde_json`, `ron`, `toml`): each has a row in its `tidy:format-crates` table;
-//! - every crate's manifest takes the workspace's lints (`[lints] workspace = true`).
+//! - every crate's manifest takes the workspace's lints (`[lints] workspace = true`);
+//! - `crates/pxpl5-sim/src` names no unit of Pixel-Planes 5 (GP, Renderer, ring, QEE, IGC, frame
+//!   buffer), in code, comments or docs alike.
 //!
 //! Each check also asserts that it found what it checks (files, crates, manifests, table rows),
 //! so that a moved directory or a renamed table fails instead of passing on nothing.
@@ -304,6 +306,118 @@ fn every_crate_takes_the_workspace_lints() {
     assert!(
         problems.is_empty(),
         "these manifests lack `[lints] workspace = true`:\n  {}",
+        problems.join("\n  ")
+    );
+}
+
+/// The words of `text` as they are read, split at every character that is not a letter or digit,
+/// and within identifiers at `_` and case changes (`RingDelivery` is "Ring", "Delivery";
+/// `QEEStream` is "QEE", "Stream"; `GPs` stays whole), in order.
+fn word_parts(text: &str) -> Vec<String> {
+    let mut parts = Vec::new();
+    for token in text.split(|c: char| !c.is_ascii_alphanumeric()) {
+        let chars: Vec<char> = token.chars().collect();
+        let mut start = 0;
+        for i in 1..chars.len() {
+            let (prev, c) = (chars[i - 1], chars[i]);
+            // In ABc the B starts a word (an acronym ends), but not in a plural acronym ("GPs").
+            let plural = i + 2 == chars.len() && chars[i + 1] == 's';
+            let next_lower = !plural && chars.get(i + 1).is_some_and(|n| n.is_ascii_lowercase());
+            // aB starts a word, and so does the B of ABc.
+            if c.is_ascii_uppercase()
+                && (prev.is_ascii_lowercase() || (prev.is_ascii_uppercase() && next_lower))
+            {
+                parts.push(chars[start..i].iter().collect());
+                start = i;
+            }
+        }
+        if start < chars.len() {
+            parts.push(chars[start..].iter().collect());
+        }
+    }
+    parts
+}
+
+/// Where `text` names a unit of Pixel-Planes 5: each hit as the word found.
+///
+/// Whole words only, so "string" or "during" are not "ring"; compared without case, because an
+/// identifier writes an acronym as `Gp` or `gp` (a case-sensitive `GP` would miss `GpResume`).
+fn machine_words(text: &str) -> Vec<String> {
+    const UNITS: [&str; 8] = [
+        "gp",
+        "gps",
+        "renderer",
+        "renderers",
+        "ring",
+        "rings",
+        "qee",
+        "igc",
+    ];
+    let parts: Vec<String> = word_parts(text)
+        .iter()
+        .map(|p| p.to_ascii_lowercase())
+        .collect();
+    let mut hits: Vec<String> = parts
+        .iter()
+        .filter(|p| UNITS.contains(&p.as_str()) || p.as_str() == "framebuffer")
+        .cloned()
+        .collect();
+    hits.extend(
+        parts
+            .windows(2)
+            .filter(|w| w[0] == "frame" && w[1] == "buffer")
+            .map(|w| w.join(" ")),
+    );
+    hits
+}
+
+#[test]
+fn machine_words_finds_identifiers_and_prose() {
+    assert_eq!(
+        machine_words("Priority::RingDelivery, GpResume, gp_wake, GPs; QEEStream IGC"),
+        ["ring", "gp", "gp", "gps", "qee", "igc"]
+    );
+    assert_eq!(
+        machine_words("FrameBuffer frame_buffer the frame buffer, Framebuffer"),
+        [
+            "framebuffer",
+            "frame buffer",
+            "frame buffer",
+            "frame buffer"
+        ]
+    );
+    assert_eq!(machine_words("a RendererComplete event"), ["renderer"]);
+    assert!(machine_words("a string during gpu ringing; frame rate, buffer").is_empty());
+}
+
+/// ARCHITECTURE.md: "`pxpl5-sim` knows nothing of Pixel-Planes". Its doc comments are checked with
+/// its code: they describe the kernel to every user, and a unit named there is a meaning the
+/// kernel would be claiming to know.
+#[test]
+fn the_simulation_kernel_names_no_machine_unit() {
+    let root = workspace_root();
+    let mut files = Vec::new();
+    rust_files(&root.join("crates/pxpl5-sim/src"), &mut files);
+    assert!(!files.is_empty(), "crates/pxpl5-sim/src has no .rs files");
+    let mut problems = Vec::new();
+    for f in &files {
+        let text = fs::read_to_string(f).unwrap_or_default();
+        for (n, line) in text.lines().enumerate() {
+            let hits = machine_words(line);
+            if !hits.is_empty() {
+                problems.push(format!(
+                    "{}:{}: {} ({})",
+                    f.strip_prefix(&root).unwrap_or(f).display(),
+                    n + 1,
+                    hits.join(", "),
+                    line.trim()
+                ));
+            }
+        }
+    }
+    assert!(
+        problems.is_empty(),
+        "pxpl5-sim must name no unit of the machine it simulates:\n  {}",
         problems.join("\n  ")
     );
 }

@@ -167,28 +167,3 @@ pub fn config_hash(cfg: &MachineConfig) -> String {
     let digest = Sha256::digest(to_ron(cfg).as_bytes());
     digest.iter().take(8).map(|b| format!("{b:02x}")).collect()
 }
-
-// Derived quantities other crates need in the simulator's unit (picoseconds). They divide by the
-// clock, which `validate` guarantees to be a positive divisor of 10^12; on an unvalidated config a
-// zero clock is treated as 1 Hz rather than panicking.
-
-impl GpConfig {
-    /// One i860 cycle in picoseconds.
-    pub fn cycle_ps(&self) -> u64 {
-        PS_PER_SECOND / self.clock_hz.max(1)
-    }
-}
-
-impl RingConfig {
-    /// One channel clock (one word moved per channel) in picoseconds.
-    pub fn cycle_ps(&self) -> u64 {
-        PS_PER_SECOND / self.channel_clock_hz.max(1)
-    }
-}
-
-impl RendererConfig {
-    /// One Renderer cycle in picoseconds.
-    pub fn cycle_ps(&self) -> u64 {
-        PS_PER_SECOND / self.clock_hz.max(1)
-    }
-}

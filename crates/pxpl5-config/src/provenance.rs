@@ -87,11 +87,6 @@ pub const PROVENANCE: &[Provenance] = &[
         "Intel i860 at 40 MHz (docs/hardware.md: Graphics Processors)",
     ),
     p(
-        "gp.memory_bytes",
-        Assumed,
-        "8 MB per GP, recalled, unverified (docs/hardware.md: GP memory)",
-    ),
-    p(
         "gp.costs.vertex_transform",
         Assumed,
         "i860 cycles, 4x4 transform about 16-32 at 80 MFLOPS peak (docs/hardware.md: GP costs)",

@@ -40,9 +40,6 @@ pub struct GpConfig {
     /// i860 clock in Hz. [secondary]: 40 MHz.
     #[serde(default = "defaults::gp_clock_hz")]
     pub clock_hz: u64,
-    /// Local memory per GP in bytes. [assumed]: 8 MB, recalled, unverified.
-    #[serde(default = "defaults::gp_memory_bytes")]
-    pub memory_bytes: u64,
     /// i860 cycles per operation of a GP program.
     #[serde(default)]
     pub costs: GpCostTable,
@@ -257,9 +254,6 @@ pub struct HostConfig {
 pub mod defaults {
     pub fn gp_clock_hz() -> u64 {
         40_000_000
-    }
-    pub fn gp_memory_bytes() -> u64 {
-        8 * 1024 * 1024
     }
     pub fn ring_channel_clock_hz() -> u64 {
         20_000_000

@@ -577,9 +577,6 @@ fn clocks_must_be_whole_picoseconds() {
     ok.ring.channel_clock_hz = 1;
     ok.renderer.clock_hz = 1_000_000_000_000;
     validate(&ok).unwrap_or_else(|e| panic!("{e:?}"));
-    assert_eq!(ok.gp.cycle_ps(), 20_000);
-    assert_eq!(default_config().renderer.cycle_ps(), 25_000);
-    assert_eq!(default_config().ring.cycle_ps(), 50_000);
 }
 
 #[test]

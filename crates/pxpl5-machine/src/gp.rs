@@ -150,7 +150,14 @@ pub(crate) struct Shared {
     pub mailbox: VecDeque<Message>,
     pub received: Option<Message>,
     pub now: Tick,
-    pub phase_marks: Vec<(String, Tick)>,
+    pub phase_marks: Vec<PhaseMark>,
+}
+
+/// The start of a program phase on one GP ([`Gp::phase`]).
+#[derive(Debug)]
+pub(crate) struct PhaseMark {
+    pub name: String,
+    pub at: Tick,
 }
 
 /// A GP's handle on the machine: everything its program may do.
@@ -232,7 +239,10 @@ impl Gp {
     pub fn phase(&self, name: &str) {
         let mut s = self.shared.borrow_mut();
         let now = s.now;
-        s.phase_marks.push((name.to_string(), now));
+        s.phase_marks.push(PhaseMark {
+            name: name.to_string(),
+            at: now,
+        });
     }
 
     /// Be busy for `count` operations of kind `op`, priced by the cost table.

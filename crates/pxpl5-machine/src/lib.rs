@@ -5,12 +5,21 @@
 //! [`Gp`], [`Program`], [`Unit`], [`Payload`]) and the Renderer command set; stats are simulated
 //! quantities only ([`RunStats`]); traces are recorded by [`Recorder`] in simulated time.
 
+mod delivery;
+mod frame_buffer;
 pub mod gp;
+mod gp_node;
 mod machine;
 mod record;
+mod renderer_node;
+mod run;
 mod stats;
+mod topology;
 
+pub use frame_buffer::Frame;
 pub use gp::{Cost, Gp, GpFuture, Message, Op, Payload, Program, ProgramError, Unit};
-pub use machine::{Frame, Machine, RunError, RunOptions, RunResult, node_order};
+pub use machine::Machine;
 pub use record::Recorder;
+pub use run::{RunError, RunOptions, RunResult};
 pub use stats::{GpStats, PhaseSpan, RendererNodeStats, RunStats};
+pub use topology::node_order;

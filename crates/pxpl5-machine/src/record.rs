@@ -23,7 +23,29 @@ struct Tracks {
     gp: Vec<TrackId>,
     gp_phase: Vec<TrackId>,
     renderer: Vec<TrackId>,
-    lanes: Vec<(TrackId, Tick)>,
+    lanes: Vec<Lane>,
+}
+
+/// A track ring messages are drawn on, and when its last message ends (a message goes on the
+/// first lane free at its send time, so slices on a lane never overlap).
+struct Lane {
+    track: TrackId,
+    free_from: Tick,
+}
+
+/// A phase mark of one GP.
+struct Mark {
+    gp: u32,
+    name: String,
+    at: Tick,
+}
+
+/// One phase of one GP: from its mark to the GP's next mark or its program's end.
+struct GpPhase {
+    gp: u32,
+    name: String,
+    start: Tick,
+    end: Tick,
 }
 
 struct Signals {
@@ -41,8 +63,8 @@ pub struct Recorder {
     tracks: Option<Tracks>,
     signals: Option<Signals>,
     units: Vec<Unit>,
-    /// Phase marks: (gp, name, at), in mark order.
-    marks: Vec<(u32, String, Tick)>,
+    /// Phase marks in mark order.
+    marks: Vec<Mark>,
     /// GP end times, for the last phase's end.
     gp_end: BTreeMap<u32, Tick>,
     /// Last sampled output-queue occupancy per node.
@@ -135,7 +157,11 @@ impl Recorder {
     }
 
     pub(crate) fn phase(&mut self, gp: u32, name: &str, at: Tick) {
-        self.marks.push((gp, name.to_string(), at));
+        self.marks.push(Mark {
+            gp,
+            name: name.to_string(),
+            at,
+        });
     }
 
     pub(crate) fn gp_busy(&mut self, gp: u32, start: Tick, end: Tick) {
@@ -174,17 +200,20 @@ impl Recorder {
         let (Some(c), Some(t)) = (&mut self.chrome, &mut self.tracks) else {
             return;
         };
-        let lane = match t.lanes.iter().position(|(_, free)| *free <= sent) {
+        let lane = match t.lanes.iter().position(|l| l.free_from <= sent) {
             Some(i) => i,
             None => {
                 let track = c.track("Ring", &format!("messages lane {}", t.lanes.len()));
-                t.lanes.push((track, Tick::ZERO));
+                t.lanes.push(Lane {
+                    track,
+                    free_from: Tick::ZERO,
+                });
                 t.lanes.len() - 1
             }
         };
-        t.lanes[lane].1 = delivered;
+        t.lanes[lane].free_from = delivered;
         c.slice(
-            t.lanes[lane].0,
+            t.lanes[lane].track,
             &format!("{from} -> {to}"),
             sent,
             delivered,
@@ -221,19 +250,22 @@ impl Recorder {
         }
     }
 
-    /// Every GP's phases as (gp, name, start, end): a phase lasts until the GP's next mark or
-    /// its program's end.
-    fn gp_phases(&self, end: Tick) -> Vec<(u32, String, Tick, Tick)> {
-        let mut by_gp: BTreeMap<u32, Vec<(String, Tick)>> = BTreeMap::new();
-        for (g, name, at) in &self.marks {
-            by_gp.entry(*g).or_default().push((name.clone(), *at));
+    /// Every GP's phases, GP by GP: a phase lasts until the GP's next mark or its program's end.
+    fn gp_phases(&self, end: Tick) -> Vec<GpPhase> {
+        let mut by_gp: BTreeMap<u32, Vec<&Mark>> = BTreeMap::new();
+        for m in &self.marks {
+            by_gp.entry(m.gp).or_default().push(m);
         }
         let mut out = Vec::new();
-        for (g, marks) in by_gp {
-            let gp_end = self.gp_end.get(&g).copied().unwrap_or(end);
-            for (i, (name, start)) in marks.iter().enumerate() {
-                let stop = marks.get(i + 1).map(|m| m.1).unwrap_or(gp_end);
-                out.push((g, name.clone(), *start, stop));
+        for (gp, marks) in by_gp {
+            let gp_end = self.gp_end.get(&gp).copied().unwrap_or(end);
+            for (i, m) in marks.iter().enumerate() {
+                out.push(GpPhase {
+                    gp,
+                    name: m.name.clone(),
+                    start: m.at,
+                    end: marks.get(i + 1).map_or(gp_end, |next| next.at),
+                });
             }
         }
         out
@@ -243,7 +275,13 @@ impl Recorder {
     /// its first start, last end and the GP time spent in it summed over GPs.
     pub(crate) fn phase_spans(&self, end: Tick) -> Vec<PhaseSpan> {
         let mut spans: Vec<PhaseSpan> = Vec::new();
-        for (_, name, start, stop) in self.gp_phases(end) {
+        for GpPhase {
+            name,
+            start,
+            end: stop,
+            ..
+        } in self.gp_phases(end)
+        {
             match spans.iter_mut().find(|s| s.name == name) {
                 Some(s) => {
                     s.first_start = s.first_start.min(start);
@@ -264,12 +302,12 @@ impl Recorder {
     pub(crate) fn close(&mut self, end: Tick) {
         let spans = self.gp_phases(end);
         if let (Some(c), Some(t)) = (&mut self.chrome, &self.tracks) {
-            for (g, name, start, stop) in spans {
+            for p in spans {
                 c.slice(
-                    t.gp_phase[g as usize],
-                    &name,
-                    start,
-                    stop,
+                    t.gp_phase[p.gp as usize],
+                    &p.name,
+                    p.start,
+                    p.end,
                     serde_json::Map::new(),
                 );
             }

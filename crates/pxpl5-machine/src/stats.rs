@@ -48,8 +48,6 @@ pub struct RunStats {
     pub config: String,
     pub config_hash: String,
     pub fidelity: Fidelity,
-    /// Which ring model ran ("cycle": channel clock by channel clock).
-    pub ring_mode: &'static str,
     /// Simulated time at which the last unit finished.
     pub end: Tick,
     pub gps: Vec<GpStats>,
@@ -160,7 +158,6 @@ impl RunStats {
             "config": self.config,
             "config_hash": self.config_hash,
             "fidelity": self.fidelity.name(),
-            "ring_mode": self.ring_mode,
             "simulated_ps": self.end.0,
             "phases": phases,
             "gps": gps,
@@ -183,13 +180,12 @@ impl RunStats {
         let mut out = String::new();
         let ms = |t: Tick| t.0 as f64 / 1e9;
         out += &format!(
-            "{} on {} ({}): {:.3} ms simulated, fidelity {}, ring model {}\n",
+            "{} on {} ({}): {:.3} ms simulated, fidelity {}\n",
             self.program,
             self.config,
             self.config_hash,
             ms(self.end),
             self.fidelity.name(),
-            self.ring_mode
         );
         out += "\nphase                     start ms      end ms     span ms   GP-time ms\n";
         for p in &self.phases {

@@ -1105,3 +1105,26 @@ fn a_message_to_a_missing_unit_names_both_ends() {
         "GP 1 sent a message to GP 7, which this machine does not have"
     );
 }
+
+/// A config that skipped validation with a zero clock is refused when the machine is built, naming
+/// the field: no clock of 0 Hz is ever taken for another frequency.
+#[test]
+fn a_zero_clock_is_refused_not_hidden() {
+    let p = program("idle", |_gp| Box::pin(async move { Ok(()) }));
+    for (field, set) in [
+        (
+            "gp.clock_hz",
+            (|c: &mut MachineConfig| c.gp.clock_hz = 0) as fn(&mut MachineConfig),
+        ),
+        ("renderer.clock_hz", |c| c.renderer.clock_hz = 0),
+        ("ring.channel_clock_hz", |c| c.ring.channel_clock_hz = 0),
+    ] {
+        let mut cfg = minimal();
+        set(&mut cfg);
+        let err = run(&cfg, &p).err().expect("a zero clock is an error");
+        assert!(
+            matches!(err, RunError::Config(ref m) if m.contains(field)),
+            "{field}: {err}"
+        );
+    }
+}

@@ -21,7 +21,7 @@ use crate::engine::bit::BitEngine;
 use crate::engine::word::WordEngine;
 use crate::engine::{Geometry, PixelEngine, QeeSink};
 use crate::qee::{COEFFICIENT_NAMES, Streams};
-use crate::readback::pack;
+use crate::readback::{ReadbackMessage, pack_messages};
 
 /// How the pixel work is simulated. Results and cycle counts are identical at every level.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -138,19 +138,22 @@ pub struct Executed {
     pub end: Cycles,
     /// Cycles waited for the backing store before starting.
     pub stall: Cycles,
-    /// Ring words for `dest`, for a readback.
-    pub readback: Option<ReadbackWords>,
+    /// The messages a readback sends.
+    pub readback: Option<ReadbackStream>,
 }
 
-/// The words a readback sends, and to whom.
+/// The messages a readback sends, and to whom.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct ReadbackWords {
-    /// The ring node the words are for (opaque to the board).
+pub struct ReadbackStream {
+    /// The ring node the messages are for (opaque to the board).
     pub dest: u32,
     /// The command's tag, passed through.
     pub tag: u32,
-    /// Ring words of `word_bits` bits, packed as [`crate::readback`] documents.
-    pub words: Vec<u64>,
+    /// Bits per pixel value: the field's width.
+    pub bits: u32,
+    /// The field's rows in order, in messages of ring words packed as [`crate::readback`]
+    /// documents.
+    pub messages: Vec<ReadbackMessage>,
 }
 
 /// Per command kind: how many ran and the cycles they took.
@@ -203,9 +206,10 @@ impl Engine {
 /// One Renderer board.
 pub struct Board {
     cfg: RendererConfig,
-    fidelity: Fidelity,
     geometry: Geometry,
     word_bits: u32,
+    /// Most ring words per readback message (see [`Board::stream_readbacks`]).
+    max_message_words: u32,
     engine: Engine,
     origin: (u32, u32),
     now: Cycles,
@@ -218,7 +222,7 @@ pub struct Board {
 
 impl Board {
     /// A board of `cfg` (already validated by `pxpl5_config`) whose readback packs ring words of
-    /// `ring_word_bits` bits.
+    /// `ring_word_bits` bits, all in one message unless [`Board::stream_readbacks`] limits them.
     pub fn new(cfg: &RendererConfig, ring_word_bits: u32, fidelity: Fidelity) -> Board {
         let geometry = Geometry::new(cfg.width, cfg.height);
         let flags = cfg.flag_registers as usize;
@@ -228,9 +232,9 @@ impl Board {
         };
         Board {
             cfg: cfg.clone(),
-            fidelity,
             geometry,
             word_bits: ring_word_bits,
+            max_message_words: u32::MAX,
             engine,
             origin: (0, 0),
             now: Cycles::ZERO,
@@ -241,12 +245,11 @@ impl Board {
         }
     }
 
-    pub fn fidelity(&self) -> Fidelity {
-        self.fidelity
-    }
-
-    pub fn config(&self) -> &RendererConfig {
-        &self.cfg
+    /// Send readbacks in messages of at most `max_message_words` ring words (whole rows, at least
+    /// one per message), as the ring's longest message requires.
+    pub fn stream_readbacks(mut self, max_message_words: u32) -> Board {
+        self.max_message_words = max_message_words;
+        self
     }
 
     /// The cycle at which the board is free for its next command.
@@ -258,11 +261,6 @@ impl Board {
     /// waiting); never moves time back.
     pub fn idle_until(&mut self, t: Cycles) {
         self.now = self.now.max(t);
-    }
-
-    /// The region origin last loaded by `SetOrigin`.
-    pub fn origin(&self) -> (u32, u32) {
-        self.origin
     }
 
     pub fn stats(&self) -> &BoardStats {
@@ -310,7 +308,7 @@ impl Board {
     }
 
     /// The pixel (or board-state) effect of a validated command that ends at cycle `end`.
-    fn apply(&mut self, cmd: &Command, end: Cycles, readback: &mut Option<ReadbackWords>) {
+    fn apply(&mut self, cmd: &Command, end: Cycles, readback: &mut Option<ReadbackStream>) {
         let gated = self.engine.get().registers().active_words(None);
         // The QEE's streams for this board's origin and size.
         let (origin, g) = (self.origin, self.geometry);
@@ -448,10 +446,17 @@ impl Board {
                 tag,
             } => {
                 let values = self.engine.get().read_values(field, rect);
-                *readback = Some(ReadbackWords {
+                *readback = Some(ReadbackStream {
                     dest,
                     tag,
-                    words: pack(&values, field.bits, self.word_bits),
+                    bits: field.bits,
+                    messages: pack_messages(
+                        &values,
+                        rect,
+                        field.bits,
+                        self.word_bits,
+                        self.max_message_words,
+                    ),
                 });
             }
         }

@@ -7,7 +7,7 @@
 //!   reference) or `word` (per-pixel integers); pixel memory, flags and cycle counts are identical,
 //!   which the property tests in `tests/equivalence.rs` check on random command streams.
 //! - [`qee`] fixes the QEE's exact semantics and its documented result-cut rule.
-//! - [`PixelLayout`] allocates named fields in pixel memory; [`readback`] packs ring words.
+//! - [`PixelLayout`] allocates named fields in pixel memory; [`readback`] packs ring words and messages.
 //!
 //! This crate knows nothing of the ring, GPs or programs: a readback names its destination node
 //! only as an opaque number, and time is the board's own count of Renderer cycles.
@@ -21,7 +21,7 @@ pub mod qee;
 pub mod readback;
 
 pub use board::{
-    Board, BoardImage, BoardStats, CommandError, Executed, Fidelity, KindStats, ReadbackWords,
+    Board, BoardImage, BoardStats, CommandError, Executed, Fidelity, KindStats, ReadbackStream,
 };
 pub use command::{Bit, Cmp, Command, Field, LogicOp, Rect};
 pub use cycles::{backing_store_blocks, backing_store_cycles, cycle_cost};

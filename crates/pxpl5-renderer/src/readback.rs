@@ -11,8 +11,49 @@
 //!
 //! \[assumed\]: the real IGC's readback format is not published; this is the densest packing that
 //! keeps every pixel inside whole words for narrow fields.
+//!
+//! A readback leaves the board as messages of whole rows, each packed on its own (its last word
+//! padded), as many rows per message as fit in `max_message_words` words and at least one
+//! (\[assumed\] streaming: the output port never needs to hold a whole field). The board packs them
+//! once ([`pack_messages`]); whoever consumes a message unpacks it once ([`unpack`]).
 
+use crate::command::Rect;
 use crate::qee::mask;
+
+/// One message of a readback: the rows of `rect` it carries, packed as [`pack`] does.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ReadbackMessage {
+    pub rect: Rect,
+    pub words: Vec<u64>,
+}
+
+/// The messages carrying `values` (the raw `bits`-bit values of `rect`'s pixels, row by row) at
+/// `word_bits` bits per word and at most `max_message_words` words per message (a row longer than
+/// that still travels whole, alone).
+pub fn pack_messages(
+    values: &[u64],
+    rect: Rect,
+    bits: u32,
+    word_bits: u32,
+    max_message_words: u32,
+) -> Vec<ReadbackMessage> {
+    let width = rect.width as usize;
+    let row_words = words_needed(width, bits, word_bits);
+    let rows_per = (max_message_words as usize / row_words.max(1)).max(1);
+    values
+        .chunks(rows_per * width)
+        .enumerate()
+        .map(|(i, rows)| ReadbackMessage {
+            rect: Rect {
+                x: rect.x,
+                y: rect.y + (i * rows_per) as u32,
+                width: rect.width,
+                height: (rows.len() / width) as u32,
+            },
+            words: pack(rows, bits, word_bits),
+        })
+        .collect()
+}
 
 /// Ring words carrying `values` (raw `bits`-bit field values) at `word_bits` bits per word.
 pub fn pack(values: &[u64], bits: u32, word_bits: u32) -> Vec<u64> {
@@ -86,5 +127,39 @@ mod tests {
         assert_eq!(w, vec![0x2345_6789, 0x1]);
         assert_eq!(unpack(&w, 40, 32, 1), vec![0x1_2345_6789]);
         assert_eq!(words_needed(5, 40, 32), 10);
+    }
+
+    #[test]
+    fn messages_carry_whole_rows_packed_apart() {
+        let rect = Rect {
+            x: 3,
+            y: 10,
+            width: 3,
+            height: 5,
+        };
+        let v: Vec<u64> = (0..15).collect();
+        // 16-bit values: a row of 3 is 2 words, so 5 words hold 2 rows; the last message 1 row.
+        let m = pack_messages(&v, rect, 16, 32, 5);
+        let heights: Vec<u32> = m.iter().map(|m| m.rect.height).collect();
+        assert_eq!(heights, [2, 2, 1]);
+        assert_eq!(
+            m[1].rect,
+            Rect {
+                y: 12,
+                height: 2,
+                ..rect
+            }
+        );
+        // Rows of one message share words (6 values in 3 words); each message pads on its own.
+        assert_eq!(m[0].words, pack(&v[..6], 16, 32));
+        assert_eq!(m[2].words, pack(&v[12..], 16, 32));
+        let back: Vec<u64> = m
+            .iter()
+            .flat_map(|m| unpack(&m.words, 16, 32, (m.rect.width * m.rect.height) as usize))
+            .collect();
+        assert_eq!(back, v);
+        // A row longer than a message travels whole; an unlimited message takes everything.
+        assert_eq!(pack_messages(&v, rect, 16, 32, 1).len(), 5);
+        assert_eq!(pack_messages(&v, rect, 16, 32, u32::MAX).len(), 1);
     }
 }

@@ -297,9 +297,13 @@ fn readback_packs_ring_words() {
         .unwrap()
         .readback
         .unwrap();
-    assert_eq!((r.dest, r.tag), (7, 9));
-    assert_eq!(r.words.len(), 8);
-    let px = readback::unpack(&r.words, 16, 32, 15);
+    assert_eq!((r.dest, r.tag, r.bits), (7, 9, 16));
+    // Unlimited messages: one message carries the whole rectangle.
+    assert_eq!(r.messages.len(), 1);
+    assert_eq!(r.messages[0].rect, rect);
+    let words = &r.messages[0].words;
+    assert_eq!(words.len(), 8);
+    let px = readback::unpack(words, 16, 32, 15);
     assert_eq!(px[0], 10 + 20 * 1000);
     assert_eq!(px[14], 14 + 22 * 1000);
     drop(b);

@@ -2,9 +2,10 @@
 //! (tick, priority, component, sequence number).
 //!
 //! Each key exists so that no two pending events ever compare equal, which is what makes a run
-//! reproducible: the tick is simulated time; the [`Priority`] fixes the phases within one tick
-//! (clock edges before ring arrivals before completions before GP programs before statistics);
-//! the [`ComponentId`] fixes the order of components acting in the same phase; and the sequence
+//! reproducible: the tick is simulated time; the [`Priority`] fixes the order of classes of events
+//! within one tick (which classes there are, and why they come in that order, is the business of
+//! the simulator that schedules them); the [`ComponentId`] fixes the order of components acting in
+//! the same class; and the sequence
 //! number, unique per `schedule` call, keeps events of the same component in the order they were
 //! scheduled (FIFO). Nothing depends on host addresses, hashing or thread timing.
 
@@ -14,9 +15,9 @@ use std::fmt;
 
 use crate::time::Tick;
 
-/// Names a simulated component (a GP, a Renderer, a ring node, ...). Its number is the
-/// tie-break between components acting at the same tick and priority, so components must be
-/// numbered deterministically (for instance in configuration order).
+/// Names a simulated component (any unit of the simulated machine). Its number is the tie-break
+/// between components acting at the same tick and priority, so components must be numbered
+/// deterministically (for instance in configuration order).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct ComponentId(pub u32);
 
@@ -26,32 +27,19 @@ impl fmt::Display for ComponentId {
     }
 }
 
-/// The phase of a tick an event belongs to; lower phases pop first at the same tick.
+/// The class of an event within its tick: at the same tick, lower classes pop first.
 ///
-/// The discriminants are explicit so that the order is visible here and cannot change by
-/// reordering lines by accident: it is part of the simulator's timing semantics.
+/// The kernel gives classes no meaning. The simulator that schedules events names its classes as
+/// constants and documents why they are ordered as they are (for instance, a completion that frees
+/// a resource before the work that wants it): that order is part of its timing semantics. A class
+/// is a plain number so that this crate names nothing of the machine it simulates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
-#[repr(u8)]
-pub enum Priority {
-    /// State updates of synchronous components happen first at a tick, before anything
-    /// else reads them, so that every later phase of the tick sees the post-edge state (as
-    /// hardware registers do) rather than a mix of old and new.
-    ClockEdge = 0,
-    /// After the clock edges, before [`Priority::RendererComplete`]: words arriving on the
-    /// ring at a tick must be visible to every component that acts at the same tick, so
-    /// arrivals are delivered before anyone finishes or starts work.
-    RingDelivery = 1,
-    /// After [`Priority::RingDelivery`], before [`Priority::GpResume`]: a Renderer finishing
-    /// a command frees it before new work is dispatched, so a GP acting at the same tick sees
-    /// it idle instead of stalling a cycle for nothing.
-    RendererComplete = 2,
-    /// After [`Priority::RendererComplete`], before [`Priority::Stats`]: GP programs run
-    /// after all arrivals and completions of the tick are known, so their decisions do not
-    /// depend on the order in which other components happened to be processed.
-    GpResume = 3,
-    /// Last: sampling counters sees the final state of the tick, after every other phase
-    /// has acted.
-    Stats = 4,
+pub struct Priority(pub u8);
+
+impl fmt::Display for Priority {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "class {}", self.0)
+    }
 }
 
 /// An event scheduled before the queue's current time: it could never happen on time.
@@ -59,7 +47,7 @@ pub enum Priority {
 pub struct PastEvent {
     /// Who scheduled it.
     pub component: ComponentId,
-    /// Its phase.
+    /// Its class.
     pub priority: Priority,
     /// When it was to happen.
     pub tick: Tick,
@@ -71,7 +59,7 @@ impl fmt::Display for PastEvent {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "{} scheduled a {:?} event at {}, before the current time {}",
+            "{} scheduled an event of {} at {}, before the current time {}",
             self.component, self.priority, self.tick, self.now
         )
     }
@@ -84,9 +72,9 @@ impl std::error::Error for PastEvent {}
 pub struct Event<T> {
     /// When it happens.
     pub tick: Tick,
-    /// Its phase within the tick.
+    /// Its class within the tick.
     pub priority: Priority,
-    /// The component it is addressed to (and the tie-break within the phase).
+    /// The component it is addressed to (and the tie-break within the class).
     pub component: ComponentId,
     /// The sequence number `schedule` returned: the FIFO tie-break.
     pub seq: u64,
@@ -179,7 +167,7 @@ impl<T> EventQueue<T> {
         }
     }
 
-    /// Schedules `payload` for `component` at `tick` in phase `priority`, and returns its
+    /// Schedules `payload` for `component` at `tick` in class `priority`, and returns its
     /// sequence number (0 for the first call, then one more per call).
     ///
     /// Scheduling at `now()` is allowed (a component reacting within the same tick); the new
@@ -274,6 +262,9 @@ mod tests {
 
     const C0: ComponentId = ComponentId(0);
     const C1: ComponentId = ComponentId(1);
+    /// The lowest and highest classes the tests use.
+    const FIRST: Priority = Priority(0);
+    const LAST: Priority = Priority(4);
 
     /// Pops everything, keeping the payloads, to compare orders compactly.
     fn drain<T>(q: &mut EventQueue<T>) -> Vec<T> {
@@ -296,8 +287,8 @@ mod tests {
     fn orders_by_tick_first() {
         let mut q = EventQueue::new();
         // Later tick but every other key smaller: the tick must still win.
-        q.schedule(Tick(200), Priority::ClockEdge, C0, "late");
-        q.schedule(Tick(100), Priority::Stats, ComponentId(9), "early");
+        q.schedule(Tick(200), FIRST, C0, "late");
+        q.schedule(Tick(100), LAST, ComponentId(9), "early");
         assert_eq!(q.peek_tick(), Some(Tick(100)));
         assert_eq!(drain(&mut q), ["early", "late"]);
     }
@@ -305,48 +296,30 @@ mod tests {
     #[test]
     fn orders_by_priority_within_a_tick() {
         let mut q = EventQueue::new();
-        // Scheduled in reverse phase order, from a larger component number downwards, so
+        // Scheduled in reverse class order, from a larger component number downwards, so
         // neither seq nor component can produce the expected order.
-        let phases = [
-            Priority::Stats,
-            Priority::GpResume,
-            Priority::RendererComplete,
-            Priority::RingDelivery,
-            Priority::ClockEdge,
-        ];
-        for (i, p) in phases.into_iter().enumerate() {
+        let classes = [LAST, Priority(3), Priority(2), Priority(1), FIRST];
+        for (i, p) in classes.into_iter().enumerate() {
             q.schedule(Tick(10), p, ComponentId(i as u32), p);
         }
         assert_eq!(
             drain(&mut q),
-            [
-                Priority::ClockEdge,
-                Priority::RingDelivery,
-                Priority::RendererComplete,
-                Priority::GpResume,
-                Priority::Stats,
-            ]
+            [FIRST, Priority(1), Priority(2), Priority(3), LAST,]
         );
     }
 
     #[test]
-    fn priority_discriminants_are_the_documented_order() {
-        assert_eq!(Priority::ClockEdge as u8, 0);
-        assert_eq!(Priority::RingDelivery as u8, 1);
-        assert_eq!(Priority::RendererComplete as u8, 2);
-        assert_eq!(Priority::GpResume as u8, 3);
-        assert_eq!(Priority::Stats as u8, 4);
-        assert!(Priority::ClockEdge < Priority::RingDelivery);
-        assert!(Priority::RingDelivery < Priority::RendererComplete);
-        assert!(Priority::RendererComplete < Priority::GpResume);
-        assert!(Priority::GpResume < Priority::Stats);
+    fn classes_order_by_number() {
+        assert!(Priority(0) < Priority(1));
+        assert!(Priority(1) < Priority(255));
+        assert_eq!(Priority(3).to_string(), "class 3");
     }
 
     #[test]
-    fn orders_by_component_within_a_phase() {
+    fn orders_by_component_within_a_class() {
         let mut q = EventQueue::new();
         for c in [7, 3, 5, 0] {
-            q.schedule(Tick(10), Priority::GpResume, ComponentId(c), c);
+            q.schedule(Tick(10), Priority(3), ComponentId(c), c);
         }
         assert_eq!(drain(&mut q), [0, 3, 5, 7]);
     }
@@ -355,7 +328,7 @@ mod tests {
     fn fifo_among_equal_tick_priority_component() {
         let mut q = EventQueue::new();
         let seqs: Vec<u64> = (0..100)
-            .map(|i| q.schedule(Tick(5), Priority::RingDelivery, C1, i))
+            .map(|i| q.schedule(Tick(5), Priority(1), C1, i))
             .collect();
         assert_eq!(seqs, (0..100).collect::<Vec<u64>>());
         let events: Vec<Event<i32>> = std::iter::from_fn(|| q.pop()).collect();
@@ -369,23 +342,23 @@ mod tests {
     #[test]
     fn sequence_numbers_count_every_schedule_call() {
         let mut q = EventQueue::new();
-        assert_eq!(q.schedule(Tick(3), Priority::Stats, C0, ()), 0);
-        assert_eq!(q.schedule(Tick(1), Priority::ClockEdge, C1, ()), 1);
+        assert_eq!(q.schedule(Tick(3), LAST, C0, ()), 0);
+        assert_eq!(q.schedule(Tick(1), FIRST, C1, ()), 1);
         q.pop();
         // Popping does not reuse or reset numbers.
-        assert_eq!(q.schedule(Tick(2), Priority::ClockEdge, C1, ()), 2);
+        assert_eq!(q.schedule(Tick(2), FIRST, C1, ()), 2);
         assert_eq!(q.len(), 2);
     }
 
     #[test]
     fn event_carries_its_key() {
         let mut q = EventQueue::new();
-        let seq = q.schedule(Tick(42), Priority::RendererComplete, ComponentId(3), 'x');
+        let seq = q.schedule(Tick(42), Priority(2), ComponentId(3), 'x');
         assert_eq!(
             q.pop(),
             Some(Event {
                 tick: Tick(42),
-                priority: Priority::RendererComplete,
+                priority: Priority(2),
                 component: ComponentId(3),
                 seq,
                 payload: 'x',
@@ -397,8 +370,8 @@ mod tests {
     fn payload_needs_no_ord() {
         // f64 is not Ord and a boxed closure is not even PartialEq: both must be accepted.
         let mut q: EventQueue<Box<dyn Fn() -> f64>> = EventQueue::new();
-        q.schedule(Tick(2), Priority::Stats, C0, Box::new(|| 2.5));
-        q.schedule(Tick(1), Priority::Stats, C0, Box::new(|| 1.5));
+        q.schedule(Tick(2), LAST, C0, Box::new(|| 2.5));
+        q.schedule(Tick(1), LAST, C0, Box::new(|| 1.5));
         let values: Vec<f64> = drain(&mut q).iter().map(|f| f()).collect();
         assert_eq!(values, [1.5, 2.5]);
     }
@@ -406,16 +379,16 @@ mod tests {
     #[test]
     fn now_advances_with_pops() {
         let mut q = EventQueue::new();
-        q.schedule(Tick(30), Priority::ClockEdge, C0, ());
-        q.schedule(Tick(10), Priority::ClockEdge, C0, ());
-        q.schedule(Tick(10), Priority::Stats, C0, ());
+        q.schedule(Tick(30), FIRST, C0, ());
+        q.schedule(Tick(10), FIRST, C0, ());
+        q.schedule(Tick(10), LAST, C0, ());
         assert_eq!(q.now(), Tick::ZERO);
         q.pop();
         assert_eq!(q.now(), Tick(10));
         q.pop();
         assert_eq!(q.now(), Tick(10));
         // Reacting within the current tick is allowed.
-        q.schedule(Tick(10), Priority::GpResume, C1, ());
+        q.schedule(Tick(10), Priority(3), C1, ());
         assert_eq!(q.peek_tick(), Some(Tick(10)));
         q.pop();
         assert_eq!(q.now(), Tick(10));
@@ -427,30 +400,27 @@ mod tests {
     #[test]
     fn scheduling_in_the_past_is_an_error() {
         let mut q = EventQueue::new();
-        q.schedule(Tick(100), Priority::ClockEdge, C0, ());
+        q.schedule(Tick(100), FIRST, C0, ());
         q.pop();
         let e = q
-            .try_schedule(Tick(99), Priority::ClockEdge, ComponentId(4), ())
+            .try_schedule(Tick(99), FIRST, ComponentId(4), ())
             .unwrap_err();
         assert_eq!(
             e,
             PastEvent {
                 component: ComponentId(4),
-                priority: Priority::ClockEdge,
+                priority: FIRST,
                 tick: Tick(99),
                 now: Tick(100),
             }
         );
         assert_eq!(
             e.to_string(),
-            "component 4 scheduled a ClockEdge event at 99 ps, before the current time 100 ps"
+            "component 4 scheduled an event of class 0 at 99 ps, before the current time 100 ps"
         );
         // Nothing was scheduled; the current time is still allowed.
         assert!(q.is_empty());
-        assert_eq!(
-            q.try_schedule(Tick(100), Priority::ClockEdge, C0, ()),
-            Ok(1)
-        );
+        assert_eq!(q.try_schedule(Tick(100), FIRST, C0, ()), Ok(1));
     }
 
     /// Knuth's MMIX LCG: deterministic and dependency-free, which is all a test order needs.
@@ -467,13 +437,7 @@ mod tests {
         }
     }
 
-    const PRIORITIES: [Priority; 5] = [
-        Priority::ClockEdge,
-        Priority::RingDelivery,
-        Priority::RendererComplete,
-        Priority::GpResume,
-        Priority::Stats,
-    ];
+    const PRIORITIES: [Priority; 5] = [FIRST, Priority(1), Priority(2), Priority(3), LAST];
 
     /// Schedules 10,000 events with keys drawn from small ranges (so that ties on tick,
     /// priority and component are frequent), the payload being the scheduling index, and
@@ -516,7 +480,7 @@ mod tests {
         // The simulator's real pattern: each popped event schedules follow-ups at or after now.
         let mut rng = Lcg(7);
         let mut q = EventQueue::new();
-        q.schedule(Tick::ZERO, Priority::ClockEdge, C0, 0u32);
+        q.schedule(Tick::ZERO, FIRST, C0, 0u32);
         let mut last = Tick::ZERO;
         let mut popped = 0;
         while let Some(e) = q.pop() {

@@ -1,27 +1,28 @@
 //! Simulated time: [`Tick`] (global, picoseconds), [`Cycles`] (one clock domain) and
 //! [`ClockDomain`], the only bridge between them.
 //!
-//! Picoseconds because every clock of the machine has an integral period in them: 40 MHz (i860,
-//! Renderer) is 25,000 ps and the seed's 20 MHz ring channel 50,000 ps. A u64 of picoseconds lasts
-//! 213 days of simulated time.
+//! Picoseconds because every clock of the simulated machine has an integral period in them: 40 MHz
+//! is 25,000 ps and 20 MHz 50,000 ps. A u64 of picoseconds lasts 213 days of simulated time.
 
 use std::fmt;
 use std::iter::Sum;
+use std::num::NonZeroU64;
 use std::ops::{Add, AddAssign, Mul, Sub};
 
 /// A point in (or span of) global simulated time, in picoseconds.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct Tick(pub u64);
 
-/// A count of clock cycles of one clock domain (which domain is the holder's business: a
-/// Renderer's cycles are Renderer clocks).
+/// A count of clock cycles of one clock domain (which domain is the holder's business: a count
+/// of one unit's cycles is in that unit's clock).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct Cycles(pub u64);
 
-/// A clock: its period in ticks.
+/// A clock: its period in ticks. Only [`ClockDomain::from_hz`] makes one, and it rejects a zero
+/// clock, so the period is nonzero by its type and every division by it is safe.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ClockDomain {
-    period: Tick,
+    period_ps: NonZeroU64,
 }
 
 /// Why a clock frequency cannot be a [`ClockDomain`].
@@ -83,34 +84,35 @@ impl ClockDomain {
         if 1_000_000_000_000 % hz != 0 {
             return Err(ClockError::NotIntegralPicoseconds(hz));
         }
-        Ok(ClockDomain {
-            period: Tick(1_000_000_000_000 / hz),
-        })
+        // hz divides 10^12, so hz <= 10^12 and the quotient is at least 1.
+        let period_ps = NonZeroU64::new(1_000_000_000_000 / hz).expect("hz <= 10^12");
+        Ok(ClockDomain { period_ps })
     }
 
-    /// The period of one cycle.
+    /// The period of one cycle (never zero).
     pub fn period(self) -> Tick {
-        self.period
+        Tick(self.period_ps.get())
     }
 
     /// Frequency in hertz.
     pub fn hz(self) -> u64 {
-        1_000_000_000_000 / self.period.0
+        1_000_000_000_000 / self.period_ps
     }
 
     /// The span of `cycles` clocks.
     pub fn to_ticks(self, cycles: Cycles) -> Tick {
-        Tick(cycles.0 * self.period.0)
+        Tick(cycles.0 * self.period_ps.get())
     }
 
     /// Whole cycles elapsed by `tick` (rounded down).
     pub fn cycles_floor(self, tick: Tick) -> Cycles {
-        Cycles(tick.0 / self.period.0)
+        Cycles(tick.0 / self.period_ps)
     }
 
     /// The first clock edge at or after `tick`, as a cycle count (rounded up).
     pub fn cycles_ceil(self, tick: Tick) -> Cycles {
-        Cycles(tick.0.div_ceil(self.period.0))
+        let whole = tick.0 / self.period_ps;
+        Cycles(whole + u64::from(tick.0 % self.period_ps != 0))
     }
 
     /// The first clock edge at or after `tick`.

@@ -1,0 +1,127 @@
+//! In-order delivery per sender and receiver: the machine's promise that messages between two units
+//! arrive in the order they were sent.
+//!
+//! The ring keeps no such order: a unit may send on several channels at once, and a short message
+//! on a free channel overtakes a long one sent earlier. So every message carries a sequence number
+//! per [`Route`] (sender, receiver), and an arrival that overtook an earlier message of its route
+//! is held here until that message arrives. Order between *different* routes is not kept, as on
+//! the real machine; programs that need it order their senders themselves (fences).
+
+use std::collections::BTreeMap;
+
+use pxpl5_ring::MessageId;
+
+use crate::gp::{Message, Payload, Unit};
+
+/// A sender and a receiver: the pair between which send order is kept.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub(crate) struct Route {
+    pub from: Unit,
+    pub to: Unit,
+}
+
+/// A message a unit wants to put on the ring (a GP's send, a Renderer's readback), kept until the
+/// sender's output queue has room for it.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Outgoing {
+    pub to: Unit,
+    pub payload: Payload,
+}
+
+/// A message on the ring: what the ring does not carry for us (it moves only word counts).
+struct InFlight {
+    route: Route,
+    seq: u64,
+    payload: Payload,
+}
+
+/// A message ready to be handed to its receiver, with the ring's id of it (the receiver frees the
+/// message's input-queue space through it).
+pub(crate) struct Arrival {
+    pub id: MessageId,
+    pub to: Unit,
+    pub message: Message,
+}
+
+/// The sequence numbers of one route.
+#[derive(Default)]
+struct RouteState {
+    /// The number the next message sent on the route carries.
+    next_send: u64,
+    /// The number of the next message to hand to the receiver.
+    next_deliver: u64,
+    /// Arrivals that overtook an earlier message of the route, by sequence number.
+    held: BTreeMap<u64, Arrival>,
+}
+
+/// Every message between sending and handing over.
+#[derive(Default)]
+pub(crate) struct Delivery {
+    in_flight: BTreeMap<MessageId, InFlight>,
+    routes: BTreeMap<Route, RouteState>,
+}
+
+impl Delivery {
+    /// The sequence number the next message on `route` will carry (the ring passes it through as
+    /// the message's tag).
+    pub fn next_seq(&self, route: Route) -> u64 {
+        self.routes.get(&route).map_or(0, |r| r.next_send)
+    }
+
+    /// The ring accepted message `id` of `route`, numbered [`Delivery::next_seq`].
+    pub fn sent(&mut self, id: MessageId, route: Route, payload: Payload) {
+        let state = self.routes.entry(route).or_default();
+        let seq = state.next_send;
+        state.next_send += 1;
+        self.in_flight.insert(
+            id,
+            InFlight {
+                route,
+                seq,
+                payload,
+            },
+        );
+    }
+
+    /// The ring delivered message `id` at `at`: returns its route, and the messages now due to
+    /// their receiver in send order (none if it overtook an earlier one; several if it was the one
+    /// they waited for).
+    ///
+    /// # Panics
+    /// If the ring delivers a message it was never given: a simulator bug.
+    pub fn arrived(&mut self, id: MessageId, at: pxpl5_sim::Tick) -> (Route, Vec<Arrival>) {
+        let InFlight {
+            route,
+            seq,
+            payload,
+        } = self
+            .in_flight
+            .remove(&id)
+            .unwrap_or_else(|| panic!("ring delivered unknown message {id} at {at}"));
+        let message = Message {
+            from: route.from,
+            payload,
+            at,
+        };
+        let state = self.routes.entry(route).or_default();
+        state.held.insert(
+            seq,
+            Arrival {
+                id,
+                to: route.to,
+                message,
+            },
+        );
+        let mut due = Vec::new();
+        while let Some(a) = state.held.remove(&state.next_deliver) {
+            state.next_deliver += 1;
+            due.push(a);
+        }
+        (route, due)
+    }
+
+    /// Whether no message is on the ring.
+    pub fn is_empty(&self) -> bool {
+        self.in_flight.is_empty()
+    }
+}

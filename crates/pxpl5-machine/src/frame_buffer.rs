@@ -1,0 +1,62 @@
+//! The frame buffer node: takes the Renderers' `Pixels` messages and keeps the picture (8-bit RGB).
+//!
+//! The model gives it no timing of its own: a message costs nothing beyond the ring's delivery,
+//! whose input-queue space it frees on arrival. What it holds is the run's [`Frame`].
+
+use pxpl5_renderer::{Rect, readback};
+
+/// The frame buffer's memory: 8-bit RGB.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Frame {
+    pub width: u32,
+    pub height: u32,
+    /// Row-major RGB bytes.
+    pub rgb: Vec<u8>,
+    /// Pixels written so far.
+    pub writes: u64,
+}
+
+impl Frame {
+    /// A black frame.
+    pub(crate) fn new(width: u32, height: u32) -> Frame {
+        Frame {
+            width,
+            height,
+            rgb: vec![0; width as usize * height as usize * 3],
+            writes: 0,
+        }
+    }
+
+    /// Write a readback of `rect` (a field of `bits` bits, packed into ring words of `word_bits`
+    /// bits): its tag is the screen position of the Renderer array's pixel (0, 0), x in the low 16
+    /// bits, y in the high 16; each value is R, G, B in its low three bytes. Pixels off the screen
+    /// are dropped (a region may overhang the screen's edge).
+    pub(crate) fn write_pixels(
+        &mut self,
+        tag: u32,
+        rect: Rect,
+        bits: u32,
+        words: &[u64],
+        word_bits: u32,
+    ) {
+        let (x, y) = (rect.x + (tag & 0xFFFF), rect.y + (tag >> 16));
+        let (width, height) = (rect.width, rect.height);
+        let px = readback::unpack(words, bits, word_bits, (width * height) as usize);
+        for row in 0..height {
+            for col in 0..width {
+                let (fx, fy) = (x + col, y + row);
+                if fx >= self.width || fy >= self.height {
+                    continue;
+                }
+                let v = px[(row * width + col) as usize];
+                // Frame-buffer rows count from the top of the screen; Renderer rows from the
+                // bottom (y up), so flip.
+                let i = ((self.height - 1 - fy) * self.width + fx) as usize;
+                self.rgb[i * 3] = (v & 0xFF) as u8;
+                self.rgb[i * 3 + 1] = ((v >> 8) & 0xFF) as u8;
+                self.rgb[i * 3 + 2] = ((v >> 16) & 0xFF) as u8;
+                self.writes += 1;
+            }
+        }
+    }
+}

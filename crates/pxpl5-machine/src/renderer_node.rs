@@ -1,0 +1,206 @@
+//! A Renderer node: one board on the ring, executing the commands it receives.
+//!
+//! - Commands run one at a time in arrival order, at the Renderer clock: the board has one
+//!   command stream, fed from its ring input queue.
+//! - A command message's input-queue space is freed when its *last* command completes, not when
+//!   it arrives: the commands sit in the input queue until the board has executed them, which is
+//!   what throttles GPs that send faster than the board renders (back-pressure).
+//! - A readback streams its rows in messages of at most `max_message_words` words, packed by the
+//!   board (`pxpl5_renderer::readback`), so a whole board's field never needs an output queue
+//!   that large; while those messages wait for output-queue space the board starts nothing new
+//!   (its port is busy).
+//!
+//! The node is a state machine; the machine moves messages on the ring and schedules the
+//! completions.
+
+use std::collections::VecDeque;
+
+use pxpl5_config::RendererConfig;
+use pxpl5_renderer::{Board, Command, Fidelity};
+use pxpl5_ring::MessageId;
+use pxpl5_sim::{ClockDomain, Tick};
+
+use crate::delivery::Outgoing;
+use crate::gp::{Payload, Unit};
+use crate::run::RunError;
+use crate::stats::RendererNodeStats;
+
+/// A command waiting in the input queue.
+struct QueuedCommand {
+    command: Command,
+    from: Unit,
+    /// The ring message it came in.
+    message: MessageId,
+    /// Whether it is its message's last command (its completion frees the message).
+    last_in_message: bool,
+}
+
+/// The command executing now: only what its completion needs.
+struct Running {
+    message: MessageId,
+    last_in_message: bool,
+}
+
+/// A command that started: what the machine records and when it completes.
+pub(crate) struct Started {
+    pub kind: &'static str,
+    pub start: Tick,
+    pub end: Tick,
+}
+
+pub(crate) struct RendererNode {
+    index: u32,
+    board: Board,
+    clock: ClockDomain,
+    queue: VecDeque<QueuedCommand>,
+    running: Option<Running>,
+    /// Readback messages waiting for output-queue space, in order.
+    outbox: VecDeque<Outgoing>,
+    /// Simulated time spent executing commands.
+    busy: Tick,
+    commands: u64,
+}
+
+impl RendererNode {
+    /// Renderer `index` of a machine whose ring has `word_bits`-bit words and messages of at most
+    /// `max_message_words` words.
+    pub fn new(
+        index: u32,
+        cfg: &RendererConfig,
+        word_bits: u32,
+        max_message_words: u32,
+        fidelity: Fidelity,
+        clock: ClockDomain,
+    ) -> RendererNode {
+        RendererNode {
+            index,
+            board: Board::new(cfg, word_bits, fidelity).stream_readbacks(max_message_words),
+            clock,
+            queue: VecDeque::new(),
+            running: None,
+            outbox: VecDeque::new(),
+            busy: Tick::ZERO,
+            commands: 0,
+        }
+    }
+
+    pub fn clock(&self) -> ClockDomain {
+        self.clock
+    }
+
+    /// Queue the commands of message `message` from `from`. Returns false if there were none: then
+    /// no completion will free the message, so the caller frees it now.
+    pub fn accept(&mut self, from: Unit, message: MessageId, commands: Vec<Command>) -> bool {
+        let n = commands.len();
+        for (i, command) in commands.into_iter().enumerate() {
+            self.queue.push_back(QueuedCommand {
+                command,
+                from,
+                message,
+                last_in_message: i + 1 == n,
+            });
+        }
+        n > 0
+    }
+
+    pub fn is_running(&self) -> bool {
+        self.running.is_some()
+    }
+
+    /// Whether the node has nothing left to do or to send.
+    pub fn is_idle(&self) -> bool {
+        self.queue.is_empty() && self.running.is_none() && self.outbox.is_empty()
+    }
+
+    /// The oldest readback message waiting for the ring.
+    pub fn next_outgoing(&self) -> Option<&Outgoing> {
+        self.outbox.front()
+    }
+
+    /// The ring took [`RendererNode::next_outgoing`].
+    pub fn outgoing_sent(&mut self) {
+        self.outbox.pop_front();
+    }
+
+    /// Start the next queued command at `now` (at the next Renderer clock edge, or later if the
+    /// board is still busy); `None` if nothing is queued.
+    pub fn start_next(&mut self, now: Tick) -> Result<Option<Started>, RunError> {
+        let Some(q) = self.queue.pop_front() else {
+            return Ok(None);
+        };
+        let start_cycle = self.clock.cycles_ceil(now);
+        self.board.idle_until(start_cycle);
+        let executed = self
+            .board
+            .execute(&q.command)
+            .map_err(|error| RunError::Command {
+                renderer: self.index,
+                kind: q.command.kind(),
+                from: q.from,
+                error,
+            })?;
+        let start = self.clock.to_ticks(executed.start);
+        let end = self.clock.to_ticks(executed.end);
+        self.busy += end - start;
+        self.commands += 1;
+        if let Some(rb) = executed.readback {
+            // The board packed the messages; they travel as they are, and whoever receives one
+            // unpacks it.
+            let to = Unit::decode(rb.dest);
+            self.outbox
+                .extend(rb.messages.into_iter().map(|m| Outgoing {
+                    to,
+                    payload: Payload::Pixels {
+                        tag: rb.tag,
+                        rect: m.rect,
+                        bits: rb.bits,
+                        words: m.words,
+                    },
+                }));
+        }
+        self.running = Some(Running {
+            message: q.message,
+            last_in_message: q.last_in_message,
+        });
+        Ok(Some(Started {
+            kind: q.command.kind(),
+            start,
+            end,
+        }))
+    }
+
+    /// The running command completed: the message whose input-queue space it frees, if any.
+    ///
+    /// # Panics
+    /// If no command is running: the machine scheduled a completion it did not start.
+    pub fn complete(&mut self) -> Option<MessageId> {
+        let done = self
+            .running
+            .take()
+            .expect("a completion has a running command");
+        done.last_in_message.then_some(done.message)
+    }
+
+    /// The node's figures for a run that ended at `end`.
+    pub fn stats(&self, end: Tick) -> RendererNodeStats {
+        RendererNodeStats {
+            renderer: self.index,
+            busy: self.clock.cycles_floor(self.busy),
+            idle: self.clock.cycles_floor(end - self.busy),
+            commands: self.commands,
+            board: self.board.stats().clone(),
+        }
+    }
+
+    /// A line for a deadlock report, if the node has work left.
+    pub fn waiting(&self) -> Option<String> {
+        (!self.queue.is_empty() || !self.outbox.is_empty()).then(|| {
+            format!(
+                "  Renderer {}: {} commands queued, {} readbacks waiting for the ring",
+                self.index,
+                self.queue.len(),
+                self.outbox.len()
+            )
+        })
+    }
+}

@@ -1,0 +1,59 @@
+//! What a run takes and gives: its options, its result, and why it can fail.
+
+use pxpl5_renderer::Fidelity;
+use pxpl5_ring::RingError;
+use pxpl5_sim::Tick;
+
+use crate::frame_buffer::Frame;
+use crate::gp::Unit;
+use crate::record::Recorder;
+use crate::stats::RunStats;
+
+/// Options of one run.
+#[derive(Clone, Debug)]
+pub struct RunOptions {
+    pub fidelity: Fidelity,
+    /// Simulated time after which the run is stopped with an error.
+    pub max_time: Tick,
+}
+
+impl Default for RunOptions {
+    fn default() -> RunOptions {
+        RunOptions {
+            fidelity: Fidelity::Word,
+            // 10 simulated seconds: far beyond any shipped program's run.
+            max_time: Tick(10_000_000_000_000),
+        }
+    }
+}
+
+/// Why a run failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    #[error("program error on GP {gp}: {message}")]
+    Program { gp: u32, message: String },
+    #[error("Renderer {renderer} rejected command {kind} sent by {from}: {error}")]
+    Command {
+        renderer: u32,
+        kind: &'static str,
+        from: Unit,
+        error: pxpl5_renderer::CommandError,
+    },
+    #[error("deadlock at {at}: every unit waits and nothing is due:\n{waiting}")]
+    Deadlock { at: Tick, waiting: String },
+    #[error("simulated time limit of {limit} reached (still running: {running})")]
+    TimeLimit { limit: Tick, running: String },
+    #[error("{unit} sent a message the ring cannot carry: {error}")]
+    Ring { unit: Unit, error: RingError },
+    #[error("{from} sent a message to {to}, which this machine does not have")]
+    NoSuchUnit { from: Unit, to: Unit },
+    #[error("bad machine: {0}")]
+    Config(String),
+}
+
+/// The result of a run: simulated statistics, the frame, and the trace recorder.
+pub struct RunResult {
+    pub stats: RunStats,
+    pub frame: Frame,
+    pub recorder: Recorder,
+}
