@@ -127,6 +127,13 @@ pub const PROVENANCE: &[Provenance] = &[
         "i860 cycles per read-back pixel of form-factor accumulation (docs/hardware.md: GP costs)",
     ),
     p(
+        "gp.costs.w_table_entry",
+        Assumed,
+        "i860 cycles per w-table pixel: two multiplies, two adds, a square root by the i860's \
+         reciprocal-square-root estimate and Newton steps (the i860 has no square-root \
+         instruction), a scale and a round (docs/hardware.md: GP costs)",
+    ),
+    p(
         "gp.costs.radiosity_update_per_patch",
         Assumed,
         "i860 cycles per patch and colour band (docs/hardware.md: GP costs)",

@@ -66,6 +66,9 @@ pub struct GpCostTable {
     pub message_receive: u64,
     /// Accumulating one read-back pixel's delta form factor into its patch's sum.
     pub ff_accumulate_per_pixel: u64,
+    /// Computing one entry of the hemisphere's w table (stored-w depth): round(sqrt(1 - u^2 -
+    /// v^2) 2^16) for one pixel.
+    pub w_table_entry: u64,
     /// Updating one patch's radiosity and unshot radiosity for one colour band.
     pub radiosity_update_per_patch: u64,
 }
@@ -299,6 +302,7 @@ impl Default for GpCostTable {
             message_send: 50,
             message_receive: 50,
             ff_accumulate_per_pixel: 4,
+            w_table_entry: 30,
             radiosity_update_per_patch: 20,
         }
     }

@@ -85,6 +85,7 @@ pub enum Op {
     EdgeSetup,
     CommandEncode,
     FfAccumulatePerPixel,
+    WTableEntry,
     RadiosityUpdatePerPatch,
 }
 
@@ -98,6 +99,7 @@ impl Op {
             Op::EdgeSetup => t.edge_setup,
             Op::CommandEncode => t.command_encode,
             Op::FfAccumulatePerPixel => t.ff_accumulate_per_pixel,
+            Op::WTableEntry => t.w_table_entry,
             Op::RadiosityUpdatePerPatch => t.radiosity_update_per_patch,
         }
     }
@@ -151,6 +153,9 @@ pub(crate) struct Shared {
     pub received: Option<Message>,
     pub now: Tick,
     pub phase_marks: Vec<PhaseMark>,
+    /// Messages received (and charged) that the program did not want yet, in arrival order: the
+    /// selective receive of [`Gp::recv_where`] takes from here first.
+    pub stash: VecDeque<Message>,
 }
 
 /// The start of a program phase on one GP ([`Gp::phase`]).
@@ -169,8 +174,82 @@ pub struct Gp {
     pub(crate) costs: GpCostTable,
     pub(crate) renderer_cfg: pxpl5_config::RendererConfig,
     pub(crate) ring_word_bits: u32,
+    pub(crate) max_message_words: u32,
     pub(crate) frame_buffer: (u32, u32),
     pub(crate) shared: Rc<RefCell<Shared>>,
+}
+
+/// Ring words of a Data message besides its values: one word for the tag and the record count
+/// (\[choice\] of the GP runtime's message format; the ring adds its own packet headers).
+pub const DATA_HEADER_WORDS: u32 = 1;
+
+/// Marks the last message of a record stream ([`Gp::send_records`]) in its tag.
+const LAST_OF_STREAM: u64 = 1 << 63;
+
+/// A program's tag of a Data message: what the message carries. Programs name their tags with an
+/// enum and give each a distinct code below 2^63 (the runtime keeps the top bit).
+pub trait Tag: Copy {
+    fn code(self) -> u64;
+}
+
+/// A fixed-size record of program data sent between GPs, and what it costs on the ring.
+pub trait Record: Sized {
+    /// Values per record.
+    const VALUES: usize;
+    /// Ring words per record: the program's statement of how its values travel (each record type
+    /// documents it, e.g. one 32-bit word per value).
+    const WORDS: u32;
+    /// Append the record's `VALUES` values.
+    fn encode(&self, out: &mut Vec<f64>);
+    /// The record from exactly `VALUES` values.
+    fn decode(values: &[f64]) -> Self;
+}
+
+/// Commands for one Renderer gathered into messages of at most the ring's `max_message_words`:
+/// [`CommandBatch::push`] sends what it holds when the next group of commands would not fit.
+pub struct CommandBatch {
+    renderer: u32,
+    commands: Vec<Command>,
+    words: u32,
+    sent: bool,
+}
+
+impl CommandBatch {
+    /// An empty batch for Renderer `renderer`.
+    pub fn new(renderer: u32) -> CommandBatch {
+        CommandBatch {
+            renderer,
+            commands: Vec::new(),
+            words: 0,
+            sent: false,
+        }
+    }
+
+    /// Add a group of commands that must travel in one message (one receiver's, one triangle's);
+    /// first send what the batch holds if the group would not fit beside it.
+    pub async fn push(&mut self, gp: &Gp, group: Vec<Command>) {
+        let w = gp.command_words(&group);
+        if self.words + w > gp.max_message_words && !self.commands.is_empty() {
+            self.send(gp).await;
+        }
+        self.commands.extend(group);
+        self.words += w;
+    }
+
+    /// Send what the batch holds; whether the batch sent anything at all, now or before.
+    pub async fn finish(mut self, gp: &Gp) -> bool {
+        if !self.commands.is_empty() {
+            self.send(gp).await;
+        }
+        self.sent
+    }
+
+    async fn send(&mut self, gp: &Gp) {
+        self.words = 0;
+        self.sent = true;
+        gp.send_commands(self.renderer, std::mem::take(&mut self.commands))
+            .await;
+    }
 }
 
 /// A future that posts one request and completes when the machine grants it.
@@ -279,6 +358,110 @@ impl Gp {
         self.compute(Op::CommandEncode, commands.len() as u64).await;
         self.send(Unit::Renderer(renderer), Payload::Commands(commands))
             .await
+    }
+
+    /// Ring words of a list of commands (with this machine's QEE format and ring word).
+    pub fn command_words(&self, commands: &[Command]) -> u32 {
+        let coefficient_bits = self.renderer_cfg.qee.coefficient_format.total_bits();
+        commands
+            .iter()
+            .map(|c| c.words(coefficient_bits, self.ring_word_bits))
+            .sum()
+    }
+
+    /// The first message `want` accepts: from the stash of messages received earlier that were
+    /// not wanted then, else the next ones received (each charged `message_receive` as it
+    /// arrives; those not wanted go to the stash in arrival order).
+    pub async fn recv_where(&self, want: impl Fn(&Message) -> bool) -> Message {
+        let stashed = {
+            let mut s = self.shared.borrow_mut();
+            let i = s.stash.iter().position(&want);
+            i.and_then(|i| s.stash.remove(i))
+        };
+        if let Some(m) = stashed {
+            return m;
+        }
+        loop {
+            let m = self.recv().await;
+            if want(&m) {
+                return m;
+            }
+            self.shared.borrow_mut().stash.push_back(m);
+        }
+    }
+
+    /// The next Data message with `tag`.
+    pub async fn recv_data(&self, tag: impl Tag) -> Message {
+        let code = tag.code();
+        self.recv_where(|m| matches!(m.payload, Payload::Data { tag: t, .. } if t == code))
+            .await
+    }
+
+    /// The next Pixels message (a readback) from Renderer `r`.
+    pub async fn recv_pixels(&self, r: u32) -> Message {
+        self.recv_where(|m| {
+            m.from == Unit::Renderer(r) && matches!(m.payload, Payload::Pixels { .. })
+        })
+        .await
+    }
+
+    /// Send GP `to` a Data message with `tag` and no values: a signal.
+    pub async fn signal(&self, to: u32, tag: impl Tag) {
+        let payload = Payload::Data {
+            tag: tag.code(),
+            values: Vec::new(),
+            words: DATA_HEADER_WORDS,
+        };
+        self.send(Unit::Gp(to), payload).await
+    }
+
+    /// Send GP `to` a stream of records with `tag`, in messages of as many whole records as fit
+    /// in the ring's `max_message_words` (at least one; an empty stream is one empty message); the
+    /// last message is marked, so the receiver knows the stream is complete.
+    pub async fn send_records<R: Record>(&self, to: u32, tag: impl Tag, records: &[R]) {
+        let room = self.max_message_words.saturating_sub(DATA_HEADER_WORDS);
+        let per = (room / R::WORDS.max(1)).max(1) as usize;
+        let chunks: Vec<&[R]> = if records.is_empty() {
+            vec![&[]]
+        } else {
+            records.chunks(per).collect()
+        };
+        let n = chunks.len();
+        for (i, chunk) in chunks.into_iter().enumerate() {
+            let mut values = Vec::with_capacity(chunk.len() * R::VALUES);
+            for r in chunk {
+                r.encode(&mut values);
+            }
+            let last = if i + 1 == n { LAST_OF_STREAM } else { 0 };
+            let payload = Payload::Data {
+                tag: tag.code() | last,
+                values,
+                words: DATA_HEADER_WORDS + R::WORDS * chunk.len() as u32,
+            };
+            self.send(Unit::Gp(to), payload).await;
+        }
+    }
+
+    /// One complete [`Gp::send_records`] stream with `tag` from each of `senders` GPs: their
+    /// records, in arrival order.
+    pub async fn recv_records<R: Record>(&self, tag: impl Tag, senders: u32) -> Vec<R> {
+        let code = tag.code();
+        let mut out = Vec::new();
+        let mut done = 0;
+        while done < senders {
+            let m = self
+                .recv_where(|m| {
+                    matches!(m.payload, Payload::Data { tag: t, .. } if t & !LAST_OF_STREAM == code)
+                })
+                .await;
+            if let Payload::Data { tag: t, values, .. } = m.payload {
+                out.extend(values.chunks_exact(R::VALUES).map(R::decode));
+                if t & LAST_OF_STREAM != 0 {
+                    done += 1;
+                }
+            }
+        }
+        out
     }
 
     /// Wait for the next message (in arrival order; messages between two units arrive in send

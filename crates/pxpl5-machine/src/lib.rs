@@ -17,7 +17,10 @@ mod stats;
 mod topology;
 
 pub use frame_buffer::Frame;
-pub use gp::{Cost, Gp, GpFuture, Message, Op, Payload, Program, ProgramError, Unit};
+pub use gp::{
+    CommandBatch, Cost, DATA_HEADER_WORDS, Gp, GpFuture, Message, Op, Payload, Program,
+    ProgramError, Record, Tag, Unit,
+};
 pub use machine::Machine;
 pub use record::Recorder;
 pub use run::{RunError, RunOptions, RunResult};

@@ -114,6 +114,7 @@ impl Machine {
                     costs: cfg.gp.costs.clone(),
                     renderer_cfg: cfg.renderer.clone(),
                     ring_word_bits: cfg.ring.word_bits,
+                    max_message_words: cfg.ring.max_message_words,
                     frame_buffer: fb,
                     shared: Rc::new(RefCell::new(Shared::default())),
                 };

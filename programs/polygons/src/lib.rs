@@ -23,7 +23,7 @@ pub mod scene;
 pub mod scenes;
 
 use crate::scene::TriangleScene;
-use pxpl5_machine::{Gp, GpFuture, Op, Payload, Program, ProgramError, Unit};
+use pxpl5_machine::{Gp, GpFuture, Op, Program, ProgramError, Record, Tag, Unit};
 use pxpl5_renderer::{Bit, Cmp, Command, Field, LogicOp, PixelLayout, Rect, Window};
 
 use geometry::{DEPTH_FIELD_BITS, DEPTH_SHIFT, ScreenTriangle, View, regions, triangle_exprs};
@@ -172,29 +172,22 @@ pub fn triangle_commands(
     out
 }
 
-/// Values per triangle in a distribute message: its index, 3 x (x, y, z), 3 x (r, g, b).
-const VALUES_PER_TRIANGLE: usize = 19;
-/// Ring words per triangle on the ring ([assumed]: 32-bit floats for the 18 numbers plus one
-/// word for the index).
-const WORDS_PER_TRIANGLE: u32 = 19;
-
-fn encode(ts: &[ScreenTriangle]) -> Vec<f64> {
-    let mut v = Vec::with_capacity(ts.len() * VALUES_PER_TRIANGLE);
-    for t in ts {
-        v.push(t.source as f64);
-        for p in t.xyz {
+/// A screen triangle as GPs exchange it: its index, 3 x (x, y, z), 3 x (r, g, b), one 32-bit
+/// ring word per value (\[assumed\]: 32-bit floats for the 18 numbers, an integer index).
+impl Record for ScreenTriangle {
+    const VALUES: usize = 19;
+    const WORDS: u32 = 19;
+    fn encode(&self, v: &mut Vec<f64>) {
+        v.push(self.source as f64);
+        for p in self.xyz {
             v.extend(p);
         }
-        for c in t.rgb {
+        for c in self.rgb {
             v.extend(c);
         }
     }
-    v
-}
-
-fn decode(v: &[f64]) -> Vec<ScreenTriangle> {
-    v.chunks(VALUES_PER_TRIANGLE)
-        .map(|c| ScreenTriangle {
+    fn decode(c: &[f64]) -> Self {
+        ScreenTriangle {
             source: c[0] as usize,
             xyz: [[c[1], c[2], c[3]], [c[4], c[5], c[6]], [c[7], c[8], c[9]]],
             rgb: [
@@ -202,8 +195,18 @@ fn decode(v: &[f64]) -> Vec<ScreenTriangle> {
                 [c[13], c[14], c[15]],
                 [c[16], c[17], c[18]],
             ],
-        })
-        .collect()
+        }
+    }
+}
+
+/// The polygon program's Data message tag.
+#[derive(Clone, Copy, Debug)]
+struct Triangles;
+
+impl Tag for Triangles {
+    fn code(self) -> u64 {
+        1
+    }
 }
 
 impl Program for Polygons {
@@ -258,31 +261,15 @@ async fn gp_main(gp: Gp, scene: &TriangleScene) -> Result<(), ProgramError> {
         if d == g {
             continue;
         }
-        let ts = &binned[d as usize];
-        let payload = Payload::Data {
-            tag: u64::from(g),
-            values: encode(ts),
-            words: 1 + WORDS_PER_TRIANGLE * ts.len() as u32,
-        };
-        send_data(&gp, Unit::Gp(d), payload).await;
+        gp.send_records(d, Triangles, &binned[d as usize]).await;
     }
     if !drivers.contains(&g) {
         gp.phase("done");
         return Ok(());
     }
     let mut mine_binned = std::mem::take(&mut binned[g as usize]);
-    // Every other GP sends this one its triangles, the last message marked.
-    let pending = gps - 1;
-    let mut done_senders = 0u32;
-    while done_senders < pending {
-        let m = gp.recv().await;
-        if let Payload::Data { values, tag, .. } = m.payload {
-            mine_binned.extend(decode(&values));
-            if tag & LAST_PACKET != 0 {
-                done_senders += 1;
-            }
-        }
-    }
+    // Every other GP sends this one its triangles.
+    mine_binned.extend(gp.recv_records::<ScreenTriangle>(Triangles, gps - 1).await);
     mine_binned.sort_by_key(|t| t.source);
 
     // 3. Render the regions of this GP's Renderers, in order.
@@ -335,34 +322,4 @@ async fn gp_main(gp: Gp, scene: &TriangleScene) -> Result<(), ProgramError> {
     }
     gp.phase("done");
     Ok(())
-}
-
-/// Marks the last message of a GP's distribution to one driver.
-const LAST_PACKET: u64 = 1 << 63;
-
-/// Send program data in messages of at most ~1,000 words (the ring's queues hold 2,048).
-async fn send_data(gp: &Gp, to: Unit, payload: Payload) {
-    let Payload::Data { tag, values, .. } = payload else {
-        unreachable!("send_data sends data")
-    };
-    let per = 50 * VALUES_PER_TRIANGLE;
-    let chunks: Vec<&[f64]> = if values.is_empty() {
-        vec![&[]]
-    } else {
-        values.chunks(per).collect()
-    };
-    let n = chunks.len();
-    for (i, c) in chunks.into_iter().enumerate() {
-        let last = if i + 1 == n { LAST_PACKET } else { 0 };
-        let triangles = (c.len() / VALUES_PER_TRIANGLE) as u32;
-        gp.send(
-            to,
-            Payload::Data {
-                tag: tag | last,
-                values: c.to_vec(),
-                words: 1 + WORDS_PER_TRIANGLE * triangles,
-            },
-        )
-        .await;
-    }
 }

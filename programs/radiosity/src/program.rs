@@ -14,82 +14,84 @@ use std::collections::BTreeMap;
 use std::rc::Rc;
 
 use pxpl5_geom::DVec3;
-use pxpl5_machine::{Gp, GpFuture, Op, Payload, Program, ProgramError, Unit};
+use pxpl5_machine::{Gp, GpFuture, Op, Program, ProgramError, Record};
 use pxpl5_sim::Tick;
 
 use crate::mesh::Patch;
-use crate::shot::{CullCounts, FfOptions, GpLocal, ItemBuffers, Receiver, Shooter, shoot};
+use crate::shot::{
+    CullCounts, FfOptions, ItemBuffers, Partial, Receiver, Shooter, Tags, WTables, shoot,
+};
 
-const TAG_PARTIAL: u64 = 10;
-const TAG_PROPOSE: u64 = 11;
-const TAG_SHOOTER: u64 = 12;
-
-/// Send `values` (pairs or triples of numbers) to GP `to` as one Data message per 500 values.
-async fn send_values(gp: &Gp, to: u32, tag: u64, values: Vec<f64>) {
-    let chunks: Vec<Vec<f64>> = if values.is_empty() {
-        vec![Vec::new()]
-    } else {
-        values.chunks(500).map(|c| c.to_vec()).collect()
-    };
-    let n = chunks.len();
-    for (i, c) in chunks.into_iter().enumerate() {
-        // The last chunk carries the high bit, so the receiver knows the sender is done.
-        let last = if i + 1 == n { 1u64 << 63 } else { 0 };
-        let words = 1 + c.len() as u32;
-        gp.send(
-            Unit::Gp(to),
-            Payload::Data {
-                tag: tag | last,
-                values: c,
-                words,
-            },
-        )
-        .await;
-    }
+/// A receiver's form factor (from a shot's shooter), as GPs exchange it: one 32-bit ring word per
+/// value (\[assumed\]: the i860 sends single-precision floats and integers; the simulator keeps
+/// the f64 it computed).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct ReceiverFactor {
+    /// Which shooter of the batch (0 for a single shot).
+    shooter: usize,
+    /// The receiving patch's ID (1-based).
+    id: u16,
+    f: f64,
 }
 
-/// Receive one complete `send_values` stream from each of `senders` GPs: their values, in
-/// arrival order.
-async fn recv_values(gp: &Gp, mail: &mut GpLocal, tag: u64, senders: u32) -> Vec<f64> {
-    let mut out = Vec::new();
-    let mut done = 0;
-    while done < senders {
-        let m = mail
-            .recv_where(
-                gp,
-                |m| matches!(m.payload, Payload::Data { tag: t, .. } if t & !(1 << 63) == tag),
-            )
-            .await;
-        if let Payload::Data { tag: t, values, .. } = m.payload {
-            out.extend(values);
-            if t & (1 << 63) != 0 {
-                done += 1;
-            }
+impl Record for ReceiverFactor {
+    const VALUES: usize = 3;
+    const WORDS: u32 = 3;
+    fn encode(&self, out: &mut Vec<f64>) {
+        out.extend([self.shooter as f64, f64::from(self.id), self.f]);
+    }
+    fn decode(v: &[f64]) -> Self {
+        ReceiverFactor {
+            shooter: v[0] as usize,
+            id: v[1] as u16,
+            f: v[2],
         }
     }
-    out
 }
 
-/// Sum every GP's partial form factors on GP 0 (returned there; empty elsewhere).
-async fn gather_on_gp0(
-    gp: &Gp,
-    mail: &mut GpLocal,
-    partial: BTreeMap<u16, f64>,
-) -> BTreeMap<u16, f64> {
+/// A candidate shooter: its unshot power and radiosity, as a GP proposes it to GP 0 and GP 0
+/// announces its picks (one 32-bit word per value, as [`ReceiverFactor`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Candidate {
+    power: f64,
+    patch: usize,
+    unshot: [f64; 3],
+}
+
+impl Record for Candidate {
+    const VALUES: usize = 5;
+    const WORDS: u32 = 5;
+    fn encode(&self, out: &mut Vec<f64>) {
+        out.extend([self.power, self.patch as f64]);
+        out.extend(self.unshot);
+    }
+    fn decode(v: &[f64]) -> Self {
+        Candidate {
+            power: v[0],
+            patch: v[1] as usize,
+            unshot: [v[2], v[3], v[4]],
+        }
+    }
+}
+
+/// Sum every GP's partial form factors (of shooter 0) on GP 0 (returned there; empty elsewhere).
+async fn gather_on_gp0(gp: &Gp, partial: Partial) -> Partial {
     if gp.index() == 0 {
         let mut total = partial;
-        let values = recv_values(gp, mail, TAG_PARTIAL, gp.gp_count() - 1).await;
-        for pair in values.chunks(2) {
-            *total.entry(pair[0] as u16).or_default() += pair[1];
+        for r in gp
+            .recv_records::<ReceiverFactor>(Tags::Partial, gp.gp_count() - 1)
+            .await
+        {
+            *total.entry(r.id).or_default() += r.f;
         }
         total
     } else {
-        let values = partial
+        let records: Vec<ReceiverFactor> = partial
             .into_iter()
-            .flat_map(|(id, f)| [f64::from(id), f])
+            .map(|(id, f)| ReceiverFactor { shooter: 0, id, f })
             .collect();
-        send_values(gp, 0, TAG_PARTIAL, values).await;
-        BTreeMap::new()
+        gp.send_records(0, Tags::Partial, &records).await;
+        Partial::new()
     }
 }
 
@@ -152,7 +154,6 @@ impl Program for FormFactorProgram {
         let count = self.polygons.len();
         Box::pin(async move {
             let mut culls = CullCounts::default();
-            let mut mail = GpLocal::default();
             let shooter = Shooter {
                 point: p,
                 normal: n,
@@ -164,13 +165,13 @@ impl Program for FormFactorProgram {
                 std::slice::from_ref(&shooter),
                 &receivers,
                 &mut culls,
-                &mut mail,
+                &mut WTables::default(),
                 None,
             )
             .await?
             .remove(0);
             gp.phase("gather");
-            let total = gather_on_gp0(&gp, &mut mail, partial).await;
+            let total = gather_on_gp0(&gp, partial).await;
             let mut r = result.borrow_mut();
             add_culls(&mut r.culls, &culls);
             if gp.index() == 0 {
@@ -252,6 +253,55 @@ fn power(p: &Patch, unshot: [f64; 3]) -> f64 {
     (unshot[0] + unshot[1] + unshot[2]) * p.area
 }
 
+/// One shooter GP 0 picked: its patch and its unshot radiosity at selection (one 32-bit word per
+/// value, as [`ReceiverFactor`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Pick {
+    patch: usize,
+    unshot: [f64; 3],
+}
+
+impl Record for Pick {
+    const VALUES: usize = 4;
+    const WORDS: u32 = 4;
+    fn encode(&self, out: &mut Vec<f64>) {
+        out.push(self.patch as f64);
+        out.extend(self.unshot);
+    }
+    fn decode(v: &[f64]) -> Self {
+        Pick {
+            patch: v[0] as usize,
+            unshot: [v[1], v[2], v[3]],
+        }
+    }
+}
+
+/// What one GP knows of the solution: the radiosity and unshot radiosity of the patches it owns
+/// (the other entries are never read), its counts, and on GP 0 the shots taken. GPs share nothing
+/// but ring messages; each writes its part into [`RadiosityProgram::solution`] when it ends, for
+/// the host to read after the run.
+struct GpSolution {
+    radiosity: Vec<[f64; 3]>,
+    unshot: Vec<[f64; 3]>,
+    shots: Vec<(usize, Tick)>,
+    reciprocity_clamps: u64,
+    converged: bool,
+}
+
+impl GpSolution {
+    /// Add this GP's part (`owned` patches) to the run's solution.
+    fn publish(self, owned: &[usize], culls: &CullCounts, out: &mut Solution) {
+        for &j in owned {
+            out.radiosity[j] = self.radiosity[j];
+            out.unshot[j] = self.unshot[j];
+        }
+        out.shots.extend(self.shots);
+        out.reciprocity_clamps += self.reciprocity_clamps;
+        out.converged |= self.converged;
+        add_culls(&mut out.culls, culls);
+    }
+}
+
 impl Program for RadiosityProgram {
     fn name(&self) -> &str {
         "radiosity"
@@ -259,12 +309,12 @@ impl Program for RadiosityProgram {
 
     fn gp_main(&self, gp: Gp) -> GpFuture {
         let patches = self.patches.clone();
-        let solution = self.solution.clone();
+        let output = self.solution.clone();
         let (opts, shots, threshold, scale) =
             (self.options, self.shots, self.threshold, self.scale);
         let item_shots = self.item_shots.clone();
         let item_buffers = self.item_buffers.clone();
-        let at_once = self.shooters_at_once;
+        let at_once = self.shooters_at_once.max(1);
         Box::pin(async move {
             let (g, gps) = (gp.index() as usize, gp.gp_count() as usize);
             if patches.len() >= u16::MAX as usize {
@@ -283,88 +333,43 @@ impl Program for RadiosityProgram {
                 })
                 .collect();
             let emitted: f64 = patches.iter().map(|p| power(p, p.emission)).sum();
-            let mut mail = GpLocal::default();
+            let mut mine = GpSolution {
+                radiosity: patches.iter().map(|p| p.emission).collect(),
+                unshot: patches.iter().map(|p| p.emission).collect(),
+                shots: Vec::new(),
+                reciprocity_clamps: 0,
+                converged: false,
+            };
             let mut culls = CullCounts::default();
-            let at_once = at_once.max(1);
-            // Shots taken so far: every GP counts the same picks (the shared solution's list is
-            // GP 0's record, written at its own pace).
+            let mut w_tables = WTables::default();
+            // Shots taken so far: every GP counts the same picks.
             let mut taken = 0usize;
             while taken < shots {
                 let batch = at_once.min(shots - taken);
-                // Shooter selection: every GP proposes its `batch` best owned patches; GP 0
-                // picks the `batch` best overall and tells everyone.
+                let _shot = tracing::debug_span!("shot", gp = g, first = taken).entered();
                 gp.phase("select");
-                gp.compute(Op::RadiosityUpdatePerPatch, owned.len() as u64)
-                    .await;
-                // A proposal: [power, patch, its unshot radiosity per band] per candidate.
-                let proposal: Vec<f64> = {
-                    let s = solution.borrow();
-                    let mut mine: Vec<(f64, usize)> = owned
-                        .iter()
-                        .map(|&j| (power(&patches[j], s.unshot[j]), j))
-                        .collect();
-                    mine.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
-                    mine.iter()
-                        .take(batch)
-                        .flat_map(|&(p, j)| {
-                            let u = s.unshot[j];
-                            [p, j as f64, u[0], u[1], u[2]]
-                        })
-                        .collect()
-                };
-                let picks: Vec<f64> = if g == 0 {
-                    let mut all = proposal;
-                    all.extend(recv_values(&gp, &mut mail, TAG_PROPOSE, gps as u32 - 1).await);
-                    let mut candidates: Vec<&[f64]> = all.chunks(5).collect();
-                    candidates.sort_by(|a, b| b[0].total_cmp(&a[0]).then(a[1].total_cmp(&b[1])));
-                    let best = candidates.first().map(|c| c[0]).unwrap_or(0.0);
-                    let chosen: Vec<f64> = if emitted <= 0.0 || best / emitted < threshold {
-                        Vec::new()
-                    } else {
-                        candidates
-                            .iter()
-                            .take(batch)
-                            .filter(|c| c[0] > 0.0)
-                            .flat_map(|c| [c[1], c[2], c[3], c[4]])
-                            .collect()
-                    };
-                    for other in 1..gps as u32 {
-                        send_values(&gp, other, TAG_SHOOTER, chosen.clone()).await;
-                    }
-                    chosen
-                } else {
-                    send_values(&gp, 0, TAG_PROPOSE, proposal).await;
-                    recv_values(&gp, &mut mail, TAG_SHOOTER, 1).await
-                };
+                let picks = select(&gp, &patches, &owned, &mine, batch, emitted, threshold).await;
                 if picks.is_empty() {
-                    if g == 0 {
-                        solution.borrow_mut().converged = true;
-                    }
+                    mine.converged = g == 0;
                     break;
                 }
-                // (shooter patch, its unshot radiosity at selection).
-                let chosen: Vec<(usize, [f64; 3])> = picks
-                    .chunks(4)
-                    .map(|c| (c[0] as usize, [c[1], c[2], c[3]]))
-                    .collect();
-                let shooters: Vec<Shooter> = chosen
+                let shooters: Vec<Shooter> = picks
                     .iter()
-                    .map(|&(i, _)| Shooter {
-                        point: patches[i].centre,
-                        normal: patches[i].normal,
+                    .map(|p| Shooter {
+                        point: patches[p.patch].centre,
+                        normal: patches[p.patch].normal,
                         scale,
                     })
                     .collect();
 
                 // Form factors from the shooters' centres, computed by all GPs together.
-                let shot_index = taken;
-                let items = item_shots.contains(&shot_index).then(|| {
+                let items = item_shots.contains(&taken).then(|| {
                     let mut all = item_buffers.borrow_mut();
-                    if !all.iter().any(|(s, _)| *s == shot_index) {
-                        all.push((shot_index, ItemBuffers::default()));
+                    if !all.iter().any(|(s, _)| *s == taken) {
+                        all.push((taken, ItemBuffers::default()));
                     }
                     all.iter()
-                        .find(|(s, _)| *s == shot_index)
+                        .find(|(s, _)| *s == taken)
                         .expect("pushed")
                         .1
                         .clone()
@@ -375,76 +380,151 @@ impl Program for RadiosityProgram {
                     &shooters,
                     &receivers,
                     &mut culls,
-                    &mut mail,
+                    &mut w_tables,
                     items.as_ref(),
                 )
                 .await?;
 
-                // Partial sums to the receivers' owners: (shooter, receiver, F) triples.
                 gp.phase("exchange");
-                let mut by_owner: Vec<Vec<f64>> = vec![Vec::new(); gps];
-                for (k, partial) in partials.into_iter().enumerate() {
-                    for (id, f) in partial {
-                        let j = id as usize - 1;
-                        by_owner[j % gps].extend([k as f64, j as f64, f]);
-                    }
-                }
-                let mut mine: BTreeMap<(usize, usize), f64> = BTreeMap::new();
-                for (o, values) in by_owner.into_iter().enumerate() {
-                    if o == g {
-                        for c in values.chunks(3) {
-                            *mine.entry((c[0] as usize, c[1] as usize)).or_default() += c[2];
-                        }
-                    } else {
-                        send_values(&gp, o as u32, TAG_PARTIAL, values).await;
-                    }
-                }
-                for c in recv_values(&gp, &mut mail, TAG_PARTIAL, gps as u32 - 1)
-                    .await
-                    .chunks(3)
-                {
-                    *mine.entry((c[0] as usize, c[1] as usize)).or_default() += c[2];
-                }
+                let factors = exchange(&gp, partials).await;
 
                 // Radiosity update of the owned receivers. The shooters' unshot radiosity is
                 // cleared first, so what one shooter of a batch receives from another stays
                 // unshot.
                 gp.phase("radiosity update");
-                gp.compute(Op::RadiosityUpdatePerPatch, 3 * mine.len() as u64)
-                    .await;
-                {
-                    let mut s = solution.borrow_mut();
-                    for &(i, _) in &chosen {
-                        if i % gps == g {
-                            s.unshot[i] = [0.0; 3];
-                        }
-                    }
-                    for (&(k, j), &f) in &mine {
-                        let (i, d_b) = chosen[k];
-                        if j == i {
-                            continue;
-                        }
-                        let mut fji = f * patches[i].area / patches[j].area;
-                        if fji > 1.0 {
-                            fji = 1.0;
-                            s.reciprocity_clamps += 1;
-                        }
-                        for (band, &shot) in d_b.iter().enumerate() {
-                            let d = patches[j].reflectance[band] * shot * fji;
-                            s.radiosity[j][band] += d;
-                            s.unshot[j][band] += d;
-                        }
-                    }
-                    if g == 0 {
-                        let now = gp.now();
-                        s.shots.extend(chosen.iter().map(|&(i, _)| (i, now)));
-                    }
+                gp.work(|cost| {
+                    cost.add(Op::RadiosityUpdatePerPatch, 3 * factors.len() as u64);
+                    update(&patches, &picks, &factors, g, gps, &mut mine);
+                })
+                .await;
+                if g == 0 {
+                    let now = gp.now();
+                    mine.shots.extend(picks.iter().map(|p| (p.patch, now)));
                 }
-                taken += chosen.len();
+                taken += picks.len();
             }
-            add_culls(&mut solution.borrow_mut().culls, &culls);
+            mine.publish(&owned, &culls, &mut output.borrow_mut());
             gp.phase("done");
             Ok(())
         })
+    }
+}
+
+/// Shooter selection: every GP proposes its `batch` owned patches of largest unshot power; GP 0
+/// picks the `batch` best overall (none once the largest unshot power is below `threshold` of
+/// `emitted`) and tells everyone. Charged: one radiosity-update operation per owned patch to rank
+/// them.
+async fn select(
+    gp: &Gp,
+    patches: &[Patch],
+    owned: &[usize],
+    mine: &GpSolution,
+    batch: usize,
+    emitted: f64,
+    threshold: f64,
+) -> Vec<Pick> {
+    let proposal: Vec<Candidate> = gp
+        .work(|cost| {
+            cost.add(Op::RadiosityUpdatePerPatch, owned.len() as u64);
+            let mut ranked: Vec<Candidate> = owned
+                .iter()
+                .map(|&j| Candidate {
+                    power: power(&patches[j], mine.unshot[j]),
+                    patch: j,
+                    unshot: mine.unshot[j],
+                })
+                .collect();
+            ranked.sort_by(|a, b| b.power.total_cmp(&a.power).then(a.patch.cmp(&b.patch)));
+            ranked.truncate(batch);
+            ranked
+        })
+        .await;
+    let gps = gp.gp_count();
+    if gp.index() != 0 {
+        gp.send_records(0, Tags::Propose, &proposal).await;
+        return gp.recv_records(Tags::Shooter, 1).await;
+    }
+    let mut all = proposal;
+    all.extend(gp.recv_records::<Candidate>(Tags::Propose, gps - 1).await);
+    all.sort_by(|a, b| b.power.total_cmp(&a.power).then(a.patch.cmp(&b.patch)));
+    let best = all.first().map_or(0.0, |c| c.power);
+    let picks: Vec<Pick> = if emitted <= 0.0 || best / emitted < threshold {
+        Vec::new()
+    } else {
+        all.iter()
+            .take(batch)
+            .filter(|c| c.power > 0.0)
+            .map(|c| Pick {
+                patch: c.patch,
+                unshot: c.unshot,
+            })
+            .collect()
+    };
+    for other in 1..gps {
+        gp.send_records(other, Tags::Shooter, &picks).await;
+    }
+    picks
+}
+
+/// Send every partial form factor to its receiver's owner and gather those of this GP's
+/// receivers: (shooter of the batch, receiving patch) -> F, summed over the GPs' bands.
+async fn exchange(gp: &Gp, partials: Vec<Partial>) -> BTreeMap<(usize, usize), f64> {
+    let (g, gps) = (gp.index() as usize, gp.gp_count() as usize);
+    let mut by_owner: Vec<Vec<ReceiverFactor>> = vec![Vec::new(); gps];
+    for (shooter, partial) in partials.into_iter().enumerate() {
+        for (id, f) in partial {
+            by_owner[(id as usize - 1) % gps].push(ReceiverFactor { shooter, id, f });
+        }
+    }
+    let mut mine: BTreeMap<(usize, usize), f64> = BTreeMap::new();
+    let mut add = |r: ReceiverFactor| {
+        *mine.entry((r.shooter, r.id as usize - 1)).or_default() += r.f;
+    };
+    for (owner, records) in by_owner.into_iter().enumerate() {
+        if owner == g {
+            records.into_iter().for_each(&mut add);
+        } else {
+            gp.send_records(owner as u32, Tags::Partial, &records).await;
+        }
+    }
+    for r in gp
+        .recv_records::<ReceiverFactor>(Tags::Partial, gps as u32 - 1)
+        .await
+    {
+        add(r);
+    }
+    mine
+}
+
+/// The radiosity update of this GP's receivers from the shot's form factors (reciprocity
+/// F_ji = F_ij A_i / A_j, clamped to 1 and counted).
+fn update(
+    patches: &[Patch],
+    picks: &[Pick],
+    factors: &BTreeMap<(usize, usize), f64>,
+    g: usize,
+    gps: usize,
+    mine: &mut GpSolution,
+) {
+    for p in picks {
+        if p.patch % gps == g {
+            mine.unshot[p.patch] = [0.0; 3];
+        }
+    }
+    for (&(k, j), &f) in factors {
+        let Pick { patch: i, unshot } = picks[k];
+        if j == i {
+            continue;
+        }
+        let mut fji = f * patches[i].area / patches[j].area;
+        if fji > 1.0 {
+            fji = 1.0;
+            mine.reciprocity_clamps += 1;
+        }
+        for (band, &shot) in unshot.iter().enumerate() {
+            let d = patches[j].reflectance[band] * shot * fji;
+            mine.radiosity[j][band] += d;
+            mine.unshot[j][band] += d;
+        }
     }
 }

@@ -13,12 +13,12 @@ use std::collections::BTreeMap;
 
 use pxpl5_config::FixedFormat;
 use pxpl5_geom::DVec3;
-use pxpl5_machine::{Cost, Gp, Op, Payload, ProgramError, Unit};
+use pxpl5_machine::{Cost, Gp, Op, Payload, ProgramError, Tag, Unit};
 use pxpl5_renderer::{Command, Rect, readback};
 
 use crate::views::{
-    Cull, EdgeRule, Face, Frame, HemisphereDepth, ViewFields, hemicube_delta_ff, hemicube_polygon,
-    hemisphere_delta_ff, hemisphere_polygon, view_setup, w_table,
+    Cull, EdgeRule, Face, HemisphereDepth, ShooterFrame, ViewFields, hemicube_delta_ff,
+    hemicube_polygon, hemisphere_delta_ff, hemisphere_polygon, view_setup, w_table,
 };
 
 /// How form factors are computed.
@@ -78,6 +78,8 @@ pub struct Receiver {
 pub(crate) struct View {
     /// Which of the shot's shooters it belongs to.
     shooter: usize,
+    /// Its place among one shooter's views: the tile of the disk (row-major) or the face.
+    tile: u32,
     renderer: u32,
     kind: ViewKind,
     /// QEE origin of the board.
@@ -219,6 +221,7 @@ pub(crate) fn views(
                     }
                     out.push(View {
                         shooter: 0,
+                        tile: ty * tiles + tx,
                         renderer: ty * tiles + tx,
                         kind: ViewKind::Disk { n },
                         origin: (x0, y0),
@@ -245,6 +248,7 @@ pub(crate) fn views(
             for (i, face, delta) in faces {
                 out.push(View {
                     shooter: 0,
+                    tile: i,
                     renderer: i % renderers,
                     kind: ViewKind::Face { face, n },
                     origin: (0, face.row0(n)),
@@ -258,9 +262,26 @@ pub(crate) fn views(
     Ok(out)
 }
 
-/// Tags of the program's Data messages.
-const TAG_GO: u64 = 1;
-const TAG_DONE: u64 = 2;
+/// The radiosity programs' Data message tags.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Tags {
+    /// GP 0 to the others: the round's boards are prepared, draw.
+    Go = 1,
+    /// A GP to GP 0: my drawing of the round has executed.
+    Done = 2,
+    /// Partial form factors to their receivers' owners (or to GP 0).
+    Partial = 10,
+    /// A GP's candidate shooters, to GP 0.
+    Propose = 11,
+    /// GP 0's chosen shooters, to everyone.
+    Shooter = 12,
+}
+
+impl Tag for Tags {
+    fn code(self) -> u64 {
+        self as u64
+    }
+}
 
 /// The largest command message, in words (under the ring's 1,024-word packets).
 const MAX_WORDS: u32 = 1000;
@@ -268,52 +289,11 @@ const MAX_WORDS: u32 = 1000;
 /// Partial form factors this GP summed: receiver id -> F.
 pub type Partial = BTreeMap<u16, f64>;
 
-/// What a GP keeps between shots: its receive side with selective receive (messages that arrive
-/// before the program wants them, a GP's "done" while GP 0 still waits for its own fences, the
-/// next round's "go" while a GP still reads back, wait in the stash in arrival order), and, on
-/// GP 0, the boards that already hold the hemisphere's w table.
-#[derive(Default)]
-pub struct GpLocal {
-    stash: std::collections::VecDeque<pxpl5_machine::Message>,
-    /// Board -> the origin of the w table it holds.
-    boards_with_w: BTreeMap<u32, (u32, u32)>,
-}
-
-impl GpLocal {
-    /// The first message (stashed or new) that `want` accepts.
-    pub async fn recv_where(
-        &mut self,
-        gp: &Gp,
-        want: impl Fn(&pxpl5_machine::Message) -> bool,
-    ) -> pxpl5_machine::Message {
-        if let Some(i) = self.stash.iter().position(&want) {
-            return self.stash.remove(i).expect("found");
-        }
-        loop {
-            let m = gp.recv().await;
-            if want(&m) {
-                return m;
-            }
-            self.stash.push_back(m);
-        }
-    }
-
-    /// The next Data message with `tag`.
-    pub async fn data(&mut self, gp: &Gp, tag: u64) -> pxpl5_machine::Message {
-        self.recv_where(
-            gp,
-            |m| matches!(m.payload, Payload::Data { tag: t, .. } if t == tag),
-        )
-        .await
-    }
-
-    /// The next Pixels message from Renderer `r`.
-    pub async fn pixels(&mut self, gp: &Gp, r: u32) -> pxpl5_machine::Message {
-        self.recv_where(gp, |m| {
-            m.from == Unit::Renderer(r) && matches!(m.payload, Payload::Pixels { .. })
-        })
-        .await
-    }
+/// What GP 0 remembers between shots: the boards that already hold the hemisphere's w table
+/// (stored-w depth), board -> the origin of the table it holds.
+#[derive(Debug, Default)]
+pub struct WTables {
+    origins: BTreeMap<u32, (u32, u32)>,
 }
 
 /// Where a shot comes from.
@@ -329,7 +309,7 @@ pub struct Shooter {
 /// from every GP's bands, outside simulated time.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct ItemBuffer {
-    /// "hemisphere", "hemisphere tile 2", "hemicube top", "hemicube side 1" ...
+    /// "shooter0-hemisphere-tile0", "shooter0-hemicube-top", "shooter1-hemicube-side2" ...
     pub view: String,
     pub width: u32,
     pub rows: u32,
@@ -337,246 +317,344 @@ pub struct ItemBuffer {
     pub ids: Vec<u16>,
 }
 
-/// Item buffers of a shot, shared by the GPs that fill them.
+/// Item buffers of a shot, filled by the GPs from their bands outside simulated time (an output
+/// for pictures, which no GP reads).
 pub type ItemBuffers = std::rc::Rc<std::cell::RefCell<Vec<ItemBuffer>>>;
+
+/// What every phase of a shot needs of the machine.
+struct Setting {
+    fields: ViewFields,
+    format: FixedFormat,
+    word_bits: u32,
+    gps: u32,
+}
 
 /// Compute the form factors of one or more shooters at once (their views spread over the
 /// Renderers, one view per Renderer per round): every GP runs this with the receivers it owns;
 /// each returns, per shooter, the partial sums of its band of every view.
+///
+/// Each round has four phases: GP 0 prepares the round's boards ([`prepare_boards`]); every GP
+/// draws its receivers ([`draw_receivers`]); every GP fences the boards it drew on and GP 0, once
+/// all are done, orders the ID readbacks ([`finish_drawing`]); every GP sums its band of each
+/// view ([`accumulate`]).
 pub async fn shoot(
     gp: &Gp,
     opts: &FfOptions,
     shooters: &[Shooter],
     receivers: &[Receiver],
     culls: &mut CullCounts,
-    mail: &mut GpLocal,
+    w_tables: &mut WTables,
     items: Option<&ItemBuffers>,
 ) -> Result<Vec<Partial>, ProgramError> {
-    let rc = gp.renderer_config().clone();
+    let rc = gp.renderer_config();
     let side = rc.width.min(rc.height);
-    let format = rc.qee.coefficient_format;
-    let word_bits = gp.ring_word_bits();
-    let coefficient_bits = format.total_bits();
-    let fields =
-        ViewFields::allocate(rc.pixel_memory_bits).map_err(|e| ProgramError(e.to_string()))?;
+    let setting = Setting {
+        fields: ViewFields::allocate(rc.pixel_memory_bits)
+            .map_err(|e| ProgramError(e.to_string()))?,
+        format: rc.qee.coefficient_format,
+        word_bits: gp.ring_word_bits(),
+        gps: gp.gp_count(),
+    };
     let renderers = gp.renderer_count();
-    // Every shooter's views, numbered across shooters so that consecutive views land on
-    // consecutive Renderers.
+    let rounds = rounds(
+        shot_views(opts, shooters.len(), renderers, side)?,
+        renderers,
+    );
+    let local = transform_receivers(gp, shooters, receivers).await;
+    let mut partial = vec![Partial::new(); shooters.len()];
+    for round in &rounds {
+        gp.phase("renderer setup");
+        prepare_boards(gp, &setting, round, opts, w_tables).await;
+        gp.phase("gp setup and send");
+        let touched = draw_receivers(gp, &setting, round, receivers, &local, opts, culls).await;
+        gp.phase("renderer work");
+        finish_drawing(gp, &setting, round, &touched).await;
+        gp.phase("id readback");
+        accumulate(gp, &setting, round, &mut partial, items).await?;
+    }
+    Ok(partial)
+}
+
+/// Every shooter's views, numbered across shooters so that consecutive views land on consecutive
+/// Renderers.
+fn shot_views(
+    opts: &FfOptions,
+    shooters: usize,
+    renderers: u32,
+    side: u32,
+) -> Result<Vec<View>, ProgramError> {
     let one = views(opts, renderers, side)?;
-    let mut all_views = Vec::new();
-    for s in 0..shooters.len() {
+    let mut all = Vec::new();
+    for s in 0..shooters {
         for v in &one {
             let mut v = v.clone();
             v.shooter = s;
-            v.renderer = (all_views.len() as u32) % renderers;
-            all_views.push(v);
+            v.renderer = (all.len() as u32) % renderers;
+            all.push(v);
         }
     }
-    let (g, gps) = (gp.index(), gp.gp_count());
-    let mut partial = vec![Partial::new(); shooters.len()];
+    Ok(all)
+}
 
-    // The receivers in each shooter's frame (one transform per vertex per shooter).
-    let mut local: Vec<Vec<Vec<DVec3>>> = Vec::new();
+/// The views in rounds of at most one view per Renderer, in order.
+fn rounds(views: Vec<View>, renderers: u32) -> Vec<Vec<View>> {
+    let mut rounds: Vec<Vec<View>> = Vec::new();
+    for v in views {
+        match rounds
+            .iter_mut()
+            .find(|r| r.iter().all(|x| x.renderer != v.renderer))
+        {
+            Some(r) if r.len() < renderers as usize => r.push(v),
+            _ => rounds.push(vec![v]),
+        }
+    }
+    rounds
+}
+
+/// The receivers in each shooter's frame (one transform per vertex per shooter, charged).
+async fn transform_receivers(
+    gp: &Gp,
+    shooters: &[Shooter],
+    receivers: &[Receiver],
+) -> Vec<Vec<Vec<DVec3>>> {
+    let mut local = Vec::new();
     for shooter in shooters {
-        gp.compute(
-            Op::VertexTransform,
-            receivers.iter().map(|r| r.vertices.len() as u64).sum(),
-        )
-        .await;
-        let frame = Frame::new(shooter.point, shooter.normal, shooter.scale);
-        local.push(
-            receivers
-                .iter()
-                .map(|r| r.vertices.iter().map(|v| frame.local(*v)).collect())
-                .collect(),
-        );
-    }
-
-    let rounds: Vec<Vec<View>> = {
-        let mut rounds: Vec<Vec<View>> = Vec::new();
-        for v in all_views {
-            match rounds
-                .iter_mut()
-                .find(|r| r.iter().all(|x| x.renderer != v.renderer))
-            {
-                Some(r) if r.len() < renderers as usize => r.push(v),
-                _ => rounds.push(vec![v]),
-            }
-        }
-        rounds
-    };
-
-    for round in &rounds {
-        // 1. GP 0 prepares the round's boards and waits for their fences; then says go.
-        gp.phase("renderer setup");
-        if g == 0 {
-            for v in round {
-                let mut cmds = v.setup_commands(&fields, format);
-                cmds.push(fence(&fields, 0));
-                gp.send_commands(v.renderer, cmds).await;
-                // Stored-w depth: write the board's w table once per run, in messages of whole
-                // rows under the packet size ([assumed]: GP time per pixel as for accumulation).
-                if opts.depth == HemisphereDepth::StoredW
-                    && matches!(v.kind, ViewKind::Disk { .. })
-                    && mail.boards_with_w.insert(v.renderer, v.origin) != Some(v.origin)
-                {
-                    let n = opts.resolution;
-                    gp.compute(Op::FfAccumulatePerPixel, u64::from(v.width * v.rows))
-                        .await;
-                    let per_row = pxpl5_renderer::readback::words_needed(
-                        v.width as usize,
-                        fields.w_table.bits,
-                        word_bits,
-                    ) as u32;
-                    let rows_per = (MAX_WORDS / per_row.max(1)).max(1);
-                    let mut y = 0;
-                    while y < v.rows {
-                        let h = rows_per.min(v.rows - y);
-                        let values = w_table(n, (v.origin.0, v.origin.1 + y), v.width, h);
-                        let cmd = Command::WritePixels {
-                            dst: fields.w_table,
-                            rect: Rect {
-                                x: 0,
-                                y,
-                                width: v.width,
-                                height: h,
-                            },
-                            values,
-                        };
-                        gp.send_commands(v.renderer, vec![cmd]).await;
-                        y += h;
-                    }
-                    gp.send_commands(v.renderer, vec![fence(&fields, 0)]).await;
-                    mail.pixels(gp, v.renderer).await;
-                }
-            }
-            for v in round {
-                mail.pixels(gp, v.renderer).await;
-            }
-            for other in 1..gps {
-                gp.send(Unit::Gp(other), go(TAG_GO)).await;
-            }
-        } else {
-            mail.data(gp, TAG_GO).await;
-        }
-
-        // 2. Every GP draws its receivers in every view of the round.
-        gp.phase("gp setup and send");
-        let mut touched = Vec::new();
-        for v in round {
-            let mut batch: Vec<Command> = Vec::new();
-            let mut words = 0;
-            for (r, verts) in receivers.iter().zip(&local[v.shooter]) {
-                let drawn = gp
-                    .work(|cost| v.receiver_commands(verts, r.id, opts, (&fields, format), cost))
-                    .await;
-                let cmds = match drawn {
-                    Ok(c) => c,
-                    Err(c) => {
-                        culls.add(c);
-                        continue;
-                    }
-                };
-                let w: u32 = cmds
+        let frame = ShooterFrame::new(shooter.point, shooter.normal, shooter.scale);
+        let in_frame = gp
+            .work(|cost| {
+                cost.add(
+                    Op::VertexTransform,
+                    receivers.iter().map(|r| r.vertices.len() as u64).sum(),
+                );
+                receivers
                     .iter()
-                    .map(|c| c.words(coefficient_bits, word_bits))
-                    .sum();
-                if words + w > MAX_WORDS && !batch.is_empty() {
-                    gp.send_commands(v.renderer, std::mem::take(&mut batch))
-                        .await;
-                    words = 0;
-                }
-                batch.extend(cmds);
-                words += w;
-            }
-            if !batch.is_empty() {
-                gp.send_commands(v.renderer, batch).await;
-                touched.push(v.renderer);
-            }
-        }
-        // Fence every board this GP drew on, then report to GP 0.
-        gp.phase("renderer work");
-        for &r in &touched {
-            gp.send_commands(r, vec![fence(&fields, g)]).await;
-        }
-        for &r in &touched {
-            mail.pixels(gp, r).await;
-        }
-        if g == 0 {
-            for _ in 1..gps {
-                mail.data(gp, TAG_DONE).await;
-            }
-            // 3. Read the IDs back: each view in row bands, one band per GP.
-            for v in round {
-                for band in 0..gps {
-                    if let Some(cmd) = v.band_readback(&fields, band, gps) {
-                        gp.send_commands(v.renderer, vec![cmd]).await;
-                    }
-                }
-            }
-        } else {
-            gp.send(Unit::Gp(0), go(TAG_DONE)).await;
-        }
+                    .map(|r| r.vertices.iter().map(|v| frame.local(*v)).collect())
+                    .collect()
+            })
+            .await;
+        local.push(in_frame);
+    }
+    local
+}
 
-        // 4. Receive this GP's band of every view and sum the delta form factors per ID.
-        gp.phase("id readback");
-        for v in round {
-            let (y0, y1) = band_rows(v.rows, gps, g);
-            let mut remaining = (v.width * (y1 - y0)) as u64;
-            while remaining > 0 {
-                let m = mail.pixels(gp, v.renderer).await;
-                let Payload::Pixels {
-                    rect, bits, words, ..
-                } = m.payload
-                else {
-                    return Err(ProgramError(format!(
-                        "GP {g}: expected ID pixels, got {m:?}"
-                    )));
-                };
-                let count = (rect.width * rect.height) as usize;
-                let ids = readback::unpack(&words, bits, word_bits, count);
-                gp.phase("accumulate");
-                gp.compute(Op::FfAccumulatePerPixel, count as u64).await;
-                if let Some(items) = items {
-                    let mut all = items.borrow_mut();
-                    let name = view_name(v);
-                    let k = match all.iter().position(|b| b.view == name) {
-                        Some(k) => k,
-                        None => {
-                            all.push(ItemBuffer {
-                                view: name,
-                                width: v.width,
-                                rows: v.rows,
-                                ids: vec![0; (v.width * v.rows) as usize],
-                            });
-                            all.len() - 1
-                        }
-                    };
-                    let start = (rect.y * v.width) as usize;
-                    for (i, &id) in ids.iter().enumerate() {
-                        all[k].ids[start + i] = id as u16;
-                    }
+/// Phase 1: GP 0 prepares the round's boards (view set-up, and for stored-w depth the w table
+/// once per board), waits for their completion probes and tells the others to draw; the others
+/// wait for that.
+async fn prepare_boards(
+    gp: &Gp,
+    s: &Setting,
+    round: &[View],
+    opts: &FfOptions,
+    w_tables: &mut WTables,
+) {
+    if gp.index() != 0 {
+        gp.recv_data(Tags::Go).await;
+        return;
+    }
+    for v in round {
+        let mut cmds = v.setup_commands(&s.fields, s.format);
+        cmds.push(completion_probe(&s.fields, 0));
+        gp.send_commands(v.renderer, cmds).await;
+        if opts.depth == HemisphereDepth::StoredW
+            && matches!(v.kind, ViewKind::Disk { .. })
+            && w_tables.origins.insert(v.renderer, v.origin) != Some(v.origin)
+        {
+            write_w_table(gp, s, v, opts.resolution).await;
+        }
+    }
+    for v in round {
+        gp.recv_pixels(v.renderer).await;
+    }
+    for other in 1..s.gps {
+        gp.signal(other, Tags::Go).await;
+    }
+}
+
+/// Stored-w depth: compute view `v`'s board's w table (one [`Op::WTableEntry`] per pixel), write
+/// it in messages of whole rows under the packet size, and wait until it is stored.
+async fn write_w_table(gp: &Gp, s: &Setting, v: &View, n: u32) {
+    let table = gp
+        .work(|cost| {
+            cost.add(Op::WTableEntry, u64::from(v.width * v.rows));
+            w_table(n, v.origin, v.width, v.rows)
+        })
+        .await;
+    let per_row = pxpl5_renderer::readback::words_needed(
+        v.width as usize,
+        s.fields.w_table.bits,
+        s.word_bits,
+    ) as u32;
+    let rows_per = (MAX_WORDS / per_row.max(1)).max(1);
+    let mut y = 0;
+    while y < v.rows {
+        let h = rows_per.min(v.rows - y);
+        let rows = (y * v.width) as usize..((y + h) * v.width) as usize;
+        let cmd = Command::WritePixels {
+            dst: s.fields.w_table,
+            rect: Rect {
+                x: 0,
+                y,
+                width: v.width,
+                height: h,
+            },
+            values: table[rows].to_vec(),
+        };
+        gp.send_commands(v.renderer, vec![cmd]).await;
+        y += h;
+    }
+    gp.send_commands(v.renderer, vec![completion_probe(&s.fields, 0)])
+        .await;
+    gp.recv_pixels(v.renderer).await;
+}
+
+/// Phase 2: this GP draws its receivers in every view of the round, in command messages under
+/// the packet size; the Renderers it drew on.
+async fn draw_receivers(
+    gp: &Gp,
+    s: &Setting,
+    round: &[View],
+    receivers: &[Receiver],
+    local: &[Vec<Vec<DVec3>>],
+    opts: &FfOptions,
+    culls: &mut CullCounts,
+) -> Vec<u32> {
+    let coefficient_bits = s.format.total_bits();
+    let mut touched = Vec::new();
+    for v in round {
+        let mut batch: Vec<Command> = Vec::new();
+        let mut words = 0;
+        for (r, verts) in receivers.iter().zip(&local[v.shooter]) {
+            let drawn = gp
+                .work(|cost| v.receiver_commands(verts, r.id, opts, (&s.fields, s.format), cost))
+                .await;
+            let cmds = match drawn {
+                Ok(c) => c,
+                Err(c) => {
+                    culls.add(c);
+                    continue;
                 }
+            };
+            let w: u32 = cmds
+                .iter()
+                .map(|c| c.words(coefficient_bits, s.word_bits))
+                .sum();
+            if words + w > MAX_WORDS && !batch.is_empty() {
+                gp.send_commands(v.renderer, std::mem::take(&mut batch))
+                    .await;
+                words = 0;
+            }
+            batch.extend(cmds);
+            words += w;
+        }
+        if !batch.is_empty() {
+            gp.send_commands(v.renderer, batch).await;
+            touched.push(v.renderer);
+        }
+    }
+    touched
+}
+
+/// Phase 3: this GP probes every board it drew on and waits until its commands there have
+/// executed, then reports to GP 0; GP 0, once every GP has, orders the ID readbacks: each view
+/// in row bands, one band per GP.
+async fn finish_drawing(gp: &Gp, s: &Setting, round: &[View], touched: &[u32]) {
+    let g = gp.index();
+    for &r in touched {
+        gp.send_commands(r, vec![completion_probe(&s.fields, g)])
+            .await;
+    }
+    for &r in touched {
+        gp.recv_pixels(r).await;
+    }
+    if g != 0 {
+        gp.signal(0, Tags::Done).await;
+        return;
+    }
+    for _ in 1..s.gps {
+        gp.recv_data(Tags::Done).await;
+    }
+    for v in round {
+        for band in 0..s.gps {
+            if let Some(cmd) = v.band_readback(&s.fields, band, s.gps) {
+                gp.send_commands(v.renderer, vec![cmd]).await;
+            }
+        }
+    }
+}
+
+/// Phase 4: receive this GP's band of every view and sum the delta form factors per ID.
+async fn accumulate(
+    gp: &Gp,
+    s: &Setting,
+    round: &[View],
+    partial: &mut [Partial],
+    items: Option<&ItemBuffers>,
+) -> Result<(), ProgramError> {
+    let g = gp.index();
+    for v in round {
+        let (y0, y1) = band_rows(v.rows, s.gps, g);
+        let mut remaining = (v.width * (y1 - y0)) as u64;
+        while remaining > 0 {
+            let m = gp.recv_pixels(v.renderer).await;
+            let Payload::Pixels {
+                rect, bits, words, ..
+            } = m.payload
+            else {
+                return Err(ProgramError(format!(
+                    "GP {g}: expected ID pixels, got {m:?}"
+                )));
+            };
+            let count = (rect.width * rect.height) as usize;
+            let ids = readback::unpack(&words, bits, s.word_bits, count);
+            gp.phase("accumulate");
+            gp.work(|cost| {
+                cost.add(Op::FfAccumulatePerPixel, count as u64);
                 for (i, &id) in ids.iter().enumerate() {
                     if id == 0 {
                         continue;
                     }
-                    let (s, t) = (i as u32 % rect.width, rect.y + i as u32 / rect.width);
+                    let (x, t) = (i as u32 % rect.width, rect.y + i as u32 / rect.width);
                     *partial[v.shooter].entry(id as u16).or_default() +=
-                        v.delta[(t * v.width + s) as usize];
+                        v.delta[(t * v.width + x) as usize];
                 }
-                remaining -= count as u64;
-                gp.phase("id readback");
+            })
+            .await;
+            if let Some(items) = items {
+                keep_item_buffer(items, v, rect.y, &ids);
             }
+            remaining -= count as u64;
+            gp.phase("id readback");
         }
     }
-    Ok(partial)
+    Ok(())
+}
+
+/// Copy a band of IDs into the item buffer of view `v` (for pictures, outside simulated time).
+fn keep_item_buffer(items: &ItemBuffers, v: &View, y: u32, ids: &[u64]) {
+    let mut all = items.borrow_mut();
+    let name = view_name(v);
+    let k = match all.iter().position(|b| b.view == name) {
+        Some(k) => k,
+        None => {
+            all.push(ItemBuffer {
+                view: name,
+                width: v.width,
+                rows: v.rows,
+                ids: vec![0; (v.width * v.rows) as usize],
+            });
+            all.len() - 1
+        }
+    };
+    let start = (y * v.width) as usize;
+    for (i, &id) in ids.iter().enumerate() {
+        all[k].ids[start + i] = id as u16;
+    }
 }
 
 /// A view's name in pictures.
 fn view_name(v: &View) -> String {
     let view = match v.kind {
-        ViewKind::Disk { .. } => format!("hemisphere-tile{}", v.origin.0 / 128 + v.origin.1 / 64),
+        ViewKind::Disk { .. } => format!("hemisphere-tile{}", v.tile),
         ViewKind::Face {
             face: Face::Top, ..
         } => "hemicube-top".to_string(),
@@ -588,9 +666,10 @@ fn view_name(v: &View) -> String {
     format!("shooter{}-{view}", v.shooter)
 }
 
-/// A one-pixel readback of the ID field to GP `g`: it executes after every earlier command on
-/// the board, so its arrival tells `g` that they are done.
-pub(crate) fn fence(f: &ViewFields, g: u32) -> Command {
+/// A completion probe: a one-pixel readback of the ID field to GP `g`. It executes after every
+/// earlier command on the board, so its arrival tells `g` that they are done. (Not
+/// `Command::Fence`, which waits for the board's backing-store transfers.)
+pub(crate) fn completion_probe(f: &ViewFields, g: u32) -> Command {
     Command::Readback {
         field: f.id,
         rect: Rect {
@@ -601,14 +680,6 @@ pub(crate) fn fence(f: &ViewFields, g: u32) -> Command {
         },
         dest: Unit::Gp(g).encode(),
         tag: 0,
-    }
-}
-
-fn go(tag: u64) -> Payload {
-    Payload::Data {
-        tag,
-        values: Vec::new(),
-        words: 1,
     }
 }
 

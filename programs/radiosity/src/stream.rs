@@ -20,8 +20,8 @@ use pxpl5_renderer::{Board, Command, CommandError};
 use pxpl5_sim::Cycles;
 
 use crate::mesh::{MeshError, Patch, mesh};
-use crate::shot::{FfOptions, Method, fence, views};
-use crate::views::{Frame, ViewFields};
+use crate::shot::{FfOptions, Method, completion_probe, views};
+use crate::views::{ShooterFrame, ViewFields};
 use crate::{scenes, solver};
 
 /// The patch size of the benchmark's mesh: `pxpl5 radiosity`'s default (90 mm).
@@ -82,7 +82,7 @@ pub fn cornell_stream(
     let mut commands = Vec::new();
     let mut culled = 0;
     for &i in &shooters {
-        let frame = Frame::new(patches[i].centre, patches[i].normal, scale);
+        let frame = ShooterFrame::new(patches[i].centre, patches[i].normal, scale);
         let local: Vec<Vec<_>> = patches
             .iter()
             .map(|p| p.vertices.iter().map(|&v| frame.local(v)).collect())
@@ -90,7 +90,7 @@ pub fn cornell_stream(
         // Every view of the shot on one board: as many Renderers as views.
         for v in views(opts, u32::MAX, side)? {
             commands.extend(v.setup_commands(&fields, format));
-            commands.push(fence(&fields, 0));
+            commands.push(completion_probe(&fields, 0));
             for (j, verts) in local.iter().enumerate() {
                 let id = (j + 1) as u16;
                 match v.receiver_commands(verts, id, opts, (&fields, format), &mut Cost::default())
@@ -99,7 +99,7 @@ pub fn cornell_stream(
                     Err(_) => culled += 1,
                 }
             }
-            commands.extend((0..gps).map(|g| fence(&fields, g)));
+            commands.extend((0..gps).map(|g| completion_probe(&fields, g)));
             commands.extend((0..gps).filter_map(|g| v.band_readback(&fields, g, gps)));
         }
     }

@@ -22,7 +22,7 @@ use pxpl5_renderer::{Bit, Cmp, Command, Field, LogicOp, QeeExpr, Window};
 
 /// The shooter's frame: a point, and orthonormal tangents t1, t2 with the normal n.
 #[derive(Clone, Copy, Debug)]
-pub struct Frame {
+pub struct ShooterFrame {
     pub origin: DVec3,
     pub t1: DVec3,
     pub t2: DVec3,
@@ -31,15 +31,15 @@ pub struct Frame {
     pub scale: f64,
 }
 
-impl Frame {
+impl ShooterFrame {
     /// A frame at `p` with normal `n`; the tangents are fixed by `n` alone (no random rotation,
     /// so runs are reproducible).
-    pub fn new(p: DVec3, n: DVec3, scale: f64) -> Frame {
+    pub fn new(p: DVec3, n: DVec3, scale: f64) -> ShooterFrame {
         let n = n.normalize();
         let helper = if n.x.abs() < 0.6 { DVec3::X } else { DVec3::Y };
         let t1 = helper.cross(n).normalize();
         let t2 = n.cross(t1);
-        Frame {
+        ShooterFrame {
             origin: p,
             t1,
             t2,
