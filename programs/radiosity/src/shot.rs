@@ -333,10 +333,10 @@ struct Setting {
 /// Renderers, one view per Renderer per round): every GP runs this with the receivers it owns;
 /// each returns, per shooter, the partial sums of its band of every view.
 ///
-/// Each round has four phases: GP 0 prepares the round's boards ([`prepare_boards`]); every GP
-/// draws its receivers ([`draw_receivers`]); every GP fences the boards it drew on and GP 0, once
-/// all are done, orders the ID readbacks ([`finish_drawing`]); every GP sums its band of each
-/// view ([`accumulate`]).
+/// Each round has four phases: GP 0 prepares the round's boards (`prepare_boards`); every GP
+/// draws its receivers (`draw_receivers`); every GP probes the boards it drew on and GP 0, once
+/// all are done, orders the ID readbacks (`finish_drawing`); every GP sums its band of each view
+/// (`accumulate`).
 pub async fn shoot(
     gp: &Gp,
     opts: &FfOptions,
