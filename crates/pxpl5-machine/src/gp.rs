@@ -304,6 +304,11 @@ impl Gp {
         self.ring_word_bits
     }
 
+    /// The most payload words one ring message carries (`ring.max_message_words`).
+    pub fn max_message_words(&self) -> u32 {
+        self.max_message_words
+    }
+
     /// The frame buffer's width and height in pixels.
     pub fn frame_buffer_size(&self) -> (u32, u32) {
         self.frame_buffer

@@ -23,7 +23,7 @@ pub mod scene;
 pub mod scenes;
 
 use crate::scene::TriangleScene;
-use pxpl5_machine::{Gp, GpFuture, Op, Program, ProgramError, Record, Tag, Unit};
+use pxpl5_machine::{CommandBatch, Gp, GpFuture, Op, Program, ProgramError, Record, Tag, Unit};
 use pxpl5_renderer::{Bit, Cmp, Command, Field, LogicOp, PixelLayout, Rect, Window};
 
 use geometry::{DEPTH_FIELD_BITS, DEPTH_SHIFT, ScreenTriangle, View, regions, triangle_exprs};
@@ -274,39 +274,28 @@ async fn gp_main(gp: Gp, scene: &TriangleScene) -> Result<(), ProgramError> {
 
     // 3. Render the regions of this GP's Renderers, in order.
     gp.phase("render");
-    let max_words = 1000u32; // stay under the ring's default max_message_words of 1,024
-    let coefficient_bits = format.total_bits();
-    let word_bits = gp.ring_word_bits();
     for r in (0..renderers).filter(|r| r % gps == g) {
         for k in (0..screen.regions()).filter(|k| k % renderers == r) {
             let origin = screen.origin(k);
-            let mut batch = clear_commands(&fields);
-            let mut batch_words: u32 = batch
-                .iter()
-                .map(|c| c.words(coefficient_bits, word_bits))
-                .sum();
+            let mut batch = CommandBatch::new(r);
+            batch.push(&gp, clear_commands(&fields)).await;
             for t in &mine_binned {
                 if !regions(t, side, screen.columns, screen.rows)
                     .contains(&(origin.0 / side, origin.1 / side))
                 {
                     continue;
                 }
-                gp.compute(Op::EdgeSetup, 7).await;
-                let cmds = triangle_commands(t, origin, side, &fields, format);
-                let words: u32 = cmds
-                    .iter()
-                    .map(|c| c.words(coefficient_bits, word_bits))
-                    .sum();
-                if batch_words + words > max_words && !batch.is_empty() {
-                    gp.send_commands(r, std::mem::take(&mut batch)).await;
-                    batch_words = 0;
-                }
-                batch.extend(cmds);
-                batch_words += words;
+                let cmds = gp
+                    .work(|cost| {
+                        cost.add(Op::EdgeSetup, 7);
+                        triangle_commands(t, origin, side, &fields, format)
+                    })
+                    .await;
+                batch.push(&gp, cmds).await;
             }
             let w = fw.saturating_sub(origin.0).min(side);
             let h = fh.saturating_sub(origin.1).min(side);
-            batch.push(Command::Readback {
+            let readback = Command::Readback {
                 field: fields.rgb,
                 rect: Rect {
                     x: 0,
@@ -316,8 +305,9 @@ async fn gp_main(gp: Gp, scene: &TriangleScene) -> Result<(), ProgramError> {
                 },
                 dest: Unit::FrameBuffer.encode(),
                 tag: origin.0 | (origin.1 << 16),
-            });
-            gp.send_commands(r, batch).await;
+            };
+            batch.push(&gp, vec![readback]).await;
+            batch.finish(&gp).await;
         }
     }
     gp.phase("done");

@@ -13,7 +13,7 @@ use std::collections::BTreeMap;
 
 use pxpl5_config::FixedFormat;
 use pxpl5_geom::DVec3;
-use pxpl5_machine::{Cost, Gp, Op, Payload, ProgramError, Tag, Unit};
+use pxpl5_machine::{CommandBatch, Cost, Gp, Op, Payload, ProgramError, Tag, Unit};
 use pxpl5_renderer::{Command, Rect, readback};
 
 use crate::views::{
@@ -283,9 +283,6 @@ impl Tag for Tags {
     }
 }
 
-/// The largest command message, in words (under the ring's 1,024-word packets).
-const MAX_WORDS: u32 = 1000;
-
 /// Partial form factors this GP summed: receiver id -> F.
 pub type Partial = BTreeMap<u16, f64>;
 
@@ -484,7 +481,7 @@ async fn write_w_table(gp: &Gp, s: &Setting, v: &View, n: u32) {
         s.fields.w_table.bits,
         s.word_bits,
     ) as u32;
-    let rows_per = (MAX_WORDS / per_row.max(1)).max(1);
+    let rows_per = (gp.max_message_words() / per_row.max(1)).max(1);
     let mut y = 0;
     while y < v.rows {
         let h = rows_per.min(v.rows - y);
@@ -518,11 +515,9 @@ async fn draw_receivers(
     opts: &FfOptions,
     culls: &mut CullCounts,
 ) -> Vec<u32> {
-    let coefficient_bits = s.format.total_bits();
     let mut touched = Vec::new();
     for v in round {
-        let mut batch: Vec<Command> = Vec::new();
-        let mut words = 0;
+        let mut batch = CommandBatch::new(v.renderer);
         for (r, verts) in receivers.iter().zip(&local[v.shooter]) {
             let drawn = gp
                 .work(|cost| v.receiver_commands(verts, r.id, opts, (&s.fields, s.format), cost))
@@ -534,20 +529,9 @@ async fn draw_receivers(
                     continue;
                 }
             };
-            let w: u32 = cmds
-                .iter()
-                .map(|c| c.words(coefficient_bits, s.word_bits))
-                .sum();
-            if words + w > MAX_WORDS && !batch.is_empty() {
-                gp.send_commands(v.renderer, std::mem::take(&mut batch))
-                    .await;
-                words = 0;
-            }
-            batch.extend(cmds);
-            words += w;
+            batch.push(gp, cmds).await;
         }
-        if !batch.is_empty() {
-            gp.send_commands(v.renderer, batch).await;
+        if batch.finish(gp).await {
             touched.push(v.renderer);
         }
     }
