@@ -401,14 +401,8 @@ fn garbage_never_panics() {
         "MachineConfig",
         "=",
     ];
-    let mut state: u64 = 0x2545_f491_4f6c_dd1d;
-    let mut next = move || {
-        // Knuth's MMIX LCG; the high bits are the good ones.
-        state = state
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        (state >> 33) as usize
-    };
+    let mut rng = pxpl5_geom::rng::Lcg::new(0x2545_f491_4f6c_dd1d);
+    let mut next = move || rng.below(1 << 31) as usize;
     for i in 0..600 {
         let len = next() % 40;
         let text: String = (0..len).map(|_| TOKENS[next() % TOKENS.len()]).collect();

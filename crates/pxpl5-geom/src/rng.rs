@@ -32,6 +32,12 @@ impl Lcg {
     pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
         lo + (hi - lo) * self.unit()
     }
+
+    /// An integer in 0..n (0 for n = 0) from the next state's high 31 bits (an LCG's low bits are
+    /// poorly mixed), reduced mod n: for test inputs, not for statistics.
+    pub fn below(&mut self, n: u64) -> u64 {
+        (self.next_u64() >> 33) % n.max(1)
+    }
 }
 
 #[cfg(test)]
@@ -50,6 +56,8 @@ mod tests {
         );
         assert!((0.0..1.0).contains(&Lcg::new(u64::MAX).unit()));
         let x = Lcg::new(9).range(-2.0, 3.0);
+        assert_eq!(Lcg::new(1).below(1 << 31), 7_806_831_264_735_756_412 >> 33);
+        assert_eq!(Lcg::new(1).below(0), 0);
         assert!((-2.0..3.0).contains(&x));
     }
 }

@@ -390,15 +390,10 @@ fn a_full_destination_holds_packets_until_consume() {
     assert!(ring.is_idle());
 }
 
-/// A fixed pseudo-random workload (a linear congruential generator; no randomness source).
+/// A fixed pseudo-random workload (the project's seeded generator; no randomness source).
 fn workload(ring: &mut Ring, seed: u64) -> (Vec<Delivery>, pxpl5_ring::RingStats) {
-    let mut x = seed;
-    let mut next = move |m: u64| {
-        x = x
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        (x >> 33) % m
-    };
+    let mut rng = pxpl5_geom::rng::Lcg::new(seed);
+    let mut next = move |m: u64| rng.below(m);
     let n = u64::from(ring.nodes());
     let mut all = Vec::new();
     for _ in 0..400 {

@@ -423,19 +423,7 @@ mod tests {
         assert_eq!(q.try_schedule(Tick(100), FIRST, C0, ()), Ok(1));
     }
 
-    /// Knuth's MMIX LCG: deterministic and dependency-free, which is all a test order needs.
-    struct Lcg(u64);
-
-    impl Lcg {
-        fn next(&mut self) -> u64 {
-            self.0 = self
-                .0
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            // The high bits of an LCG are the well-mixed ones.
-            self.0 >> 33
-        }
-    }
+    use pxpl5_geom::rng::Lcg;
 
     const PRIORITIES: [Priority; 5] = [FIRST, Priority(1), Priority(2), Priority(3), LAST];
 
@@ -443,12 +431,12 @@ mod tests {
     /// priority and component are frequent), the payload being the scheduling index, and
     /// returns them popped.
     fn scrambled_run(seed: u64) -> Vec<Event<usize>> {
-        let mut rng = Lcg(seed);
+        let mut rng = Lcg::new(seed);
         let mut q = EventQueue::new();
         for i in 0..10_000 {
-            let tick = Tick(rng.next() % 200);
-            let priority = PRIORITIES[(rng.next() % 5) as usize];
-            let component = ComponentId((rng.next() % 8) as u32);
+            let tick = Tick(rng.below(200));
+            let priority = PRIORITIES[(rng.below(5)) as usize];
+            let component = ComponentId((rng.below(8)) as u32);
             q.schedule(tick, priority, component, i);
         }
         assert_eq!(q.len(), 10_000);
@@ -478,7 +466,7 @@ mod tests {
     #[test]
     fn interleaved_schedule_and_pop_never_goes_back_in_time() {
         // The simulator's real pattern: each popped event schedules follow-ups at or after now.
-        let mut rng = Lcg(7);
+        let mut rng = Lcg::new(7);
         let mut q = EventQueue::new();
         q.schedule(Tick::ZERO, FIRST, C0, 0u32);
         let mut last = Tick::ZERO;
@@ -489,8 +477,8 @@ mod tests {
             popped += 1;
             if e.payload < 2_000 {
                 for k in 0..2 {
-                    let tick = e.tick + Tick(rng.next() % 3);
-                    let priority = PRIORITIES[(rng.next() % 5) as usize];
+                    let tick = e.tick + Tick(rng.below(3));
+                    let priority = PRIORITIES[(rng.below(5)) as usize];
                     q.schedule(tick, priority, ComponentId(k), e.payload * 2 + 1 + k);
                 }
             }
