@@ -421,3 +421,37 @@ fn the_simulation_kernel_names_no_machine_unit() {
         problems.join("\n  ")
     );
 }
+
+/// ARCHITECTURE.md: "GP work and its cost are one call". Programs charge i860 time only through
+/// `Gp::work`, which runs the work and charges what it noted, never by a separate `compute`.
+#[test]
+fn programs_charge_gp_work_where_they_do_it() {
+    let root = workspace_root();
+    let mut files = Vec::new();
+    rust_files(&root.join("programs"), &mut files);
+    files.retain(|f| f.components().any(|c| c.as_os_str() == "src"));
+    assert!(
+        files.len() >= 10,
+        "found only {} program sources",
+        files.len()
+    );
+    let mut problems = Vec::new();
+    for f in &files {
+        let text = fs::read_to_string(f).unwrap_or_default();
+        for (n, line) in text.lines().enumerate() {
+            if line.contains(".compute(") || line.contains(".compute_cycles(") {
+                problems.push(format!(
+                    "{}:{}: {}",
+                    f.strip_prefix(&root).unwrap_or(f).display(),
+                    n + 1,
+                    line.trim()
+                ));
+            }
+        }
+    }
+    assert!(
+        problems.is_empty(),
+        "programs must charge GP time with Gp::work (the work and its cost in one call):\n  {}",
+        problems.join("\n  ")
+    );
+}

@@ -329,7 +329,9 @@ impl Gp {
         });
     }
 
-    /// Be busy for `count` operations of kind `op`, priced by the cost table.
+    /// Be busy for `count` operations of kind `op`, priced by the cost table. Programs charge
+    /// their work with [`Gp::work`] instead, so that what is charged is what is done (tidy checks
+    /// `programs/`); this is for tests of the machine.
     pub async fn compute(&self, op: Op, count: u64) {
         self.compute_cycles(Cycles(op.cycles(&self.costs) * count))
             .await

@@ -239,10 +239,16 @@ async fn gp_main(gp: Gp, scene: &TriangleScene) -> Result<(), ProgramError> {
         .collect();
     let mut binned: Vec<Vec<ScreenTriangle>> = vec![Vec::new(); gps as usize];
     for &i in &mine {
-        gp.compute(Op::VertexTransform, 3).await;
-        gp.compute(Op::ClipTest, 3).await;
-        for t in view.project(scene, i) {
-            gp.compute(Op::PolygonSetup, 1).await;
+        let projected = gp
+            .work(|cost| {
+                cost.add(Op::VertexTransform, 3);
+                cost.add(Op::ClipTest, 3);
+                let projected = view.project(scene, i);
+                cost.add(Op::PolygonSetup, projected.len() as u64);
+                projected
+            })
+            .await;
+        for t in projected {
             let mut owners: Vec<u32> = regions(&t, side, screen.columns, screen.rows)
                 .into_iter()
                 .map(|(c, r)| driver_of_region(r * screen.columns + c))
