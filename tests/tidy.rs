@@ -455,3 +455,34 @@ fn programs_charge_gp_work_where_they_do_it() {
         problems.join("\n  ")
     );
 }
+
+/// ARCHITECTURE.md: one home for geometry. Vector math is glam's, and what glam lacks lives in
+/// `pxpl5-geom`: no other crate writes its own `cross` or `dot`; and programs own their file
+/// formats: no scene type lives in `pxpl5-config`.
+#[test]
+fn geometry_and_scene_formats_have_one_home() {
+    let root = workspace_root();
+    let files = project_rust_files();
+    let mut problems = Vec::new();
+    for f in &files {
+        let rel = f.strip_prefix(&root).unwrap_or(f);
+        let text = fs::read_to_string(f).unwrap_or_default();
+        for (n, line) in text.lines().enumerate() {
+            let t = line.trim_start();
+            let vector_math = t.contains("fn cross(") || t.contains("fn dot(");
+            if vector_math && !rel.starts_with("crates/pxpl5-geom") {
+                problems.push(format!("{}:{}: {}", rel.display(), n + 1, t));
+            }
+            let scene_type = (t.starts_with("pub struct") || t.starts_with("struct"))
+                && t.contains("Scene");
+            if scene_type && rel.starts_with("crates/pxpl5-config") {
+                problems.push(format!("{}:{}: {}", rel.display(), n + 1, t));
+            }
+        }
+    }
+    assert!(
+        problems.is_empty(),
+        "vector math belongs to pxpl5-geom (glam) and scene formats to their programs:\n  {}",
+        problems.join("\n  ")
+    );
+}
