@@ -469,12 +469,14 @@ fn geometry_and_scene_formats_have_one_home() {
         let text = fs::read_to_string(f).unwrap_or_default();
         for (n, line) in text.lines().enumerate() {
             let t = line.trim_start();
-            let vector_math = t.contains("fn cross(") || t.contains("fn dot(");
+            let vector_math = ["cross", "dot"]
+                .iter()
+                .any(|name| t.contains(&format!("fn {name}(")));
             if vector_math && !rel.starts_with("crates/pxpl5-geom") {
                 problems.push(format!("{}:{}: {}", rel.display(), n + 1, t));
             }
-            let scene_type = (t.starts_with("pub struct") || t.starts_with("struct"))
-                && t.contains("Scene");
+            let scene_type =
+                (t.starts_with("pub struct") || t.starts_with("struct")) && t.contains("Scene");
             if scene_type && rel.starts_with("crates/pxpl5-config") {
                 problems.push(format!("{}:{}: {}", rel.display(), n + 1, t));
             }
