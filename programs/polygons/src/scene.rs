@@ -195,6 +195,14 @@ mod tests {
         (0, 1, 0)], colours: [(1, 0, 0), (0, 1, 0), (0, 0, 1)])])";
 
     #[test]
+    fn a_missing_file_is_named_a_triangle_scene() {
+        let missing = std::env::temp_dir().join("pxpl5-no-such-triangle-scene.ron");
+        let text = load_triangle_scene(&missing).unwrap_err().to_string();
+        assert!(text.contains("cannot read triangle scene"), "{text}");
+        assert!(!text.contains("machine config"), "{text}");
+    }
+
+    #[test]
     fn parses_a_scene() {
         let s = parse_triangle_scene("s.ron", GOOD).unwrap();
         assert_eq!(s.triangles.len(), 1);

@@ -485,10 +485,14 @@ mod tests {
             std::env::temp_dir().join(format!("pxpl5-radiosity-scene-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let missing = dir.join("missing.ron");
-        assert!(matches!(
-            load_radiosity_scene(&missing),
-            Err(ConfigError::Io { .. })
-        ));
+        let err = load_radiosity_scene(&missing).unwrap_err();
+        assert!(matches!(err, ConfigError::Io { .. }));
+        // The report names the kind of file: a scene, not a machine config.
+        let text = err.to_string();
+        assert!(
+            text.contains("missing.ron: cannot read radiosity scene"),
+            "{text}"
+        );
         let bad = dir.join("bad.ron");
         std::fs::write(&bad, b"(name: \"\xff\")").unwrap();
         assert!(matches!(
