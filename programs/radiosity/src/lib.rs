@@ -9,6 +9,7 @@ pub mod mesh;
 pub mod program;
 pub mod scene;
 pub mod scenes;
+pub mod seed;
 pub mod shot;
 pub mod solver;
 pub mod stream;
