@@ -5,6 +5,7 @@
 //! stream of a few shots that the benchmarks time ([`stream`]).
 
 pub mod exact;
+pub mod experiment;
 pub mod mesh;
 pub mod program;
 pub mod scene;
