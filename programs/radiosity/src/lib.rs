@@ -7,6 +7,7 @@
 pub mod exact;
 pub mod experiment;
 pub mod mesh;
+pub mod picture;
 pub mod program;
 pub mod scene;
 pub mod scenes;
