@@ -16,10 +16,10 @@ use pxpl5_radiosity::mesh::{Patch, mesh};
 use pxpl5_radiosity::program::{FormFactorProgram, FormFactorResult, RadiosityProgram, Solution};
 use pxpl5_radiosity::scene::RadiosityScene;
 use pxpl5_radiosity::shot::{FfOptions, Method};
-use pxpl5_radiosity::views::{EdgeRule, HemisphereDepth};
 use pxpl5_renderer::Fidelity;
 
 use crate::UserError;
+use crate::choices::{Delta, DepthArg, EdgeRuleArg, FidelityArg, FormFactorMethod, Methods};
 use crate::config_cmd;
 use crate::run::{TraceArgs, png_bytes, probe_writable, simulate, write_atomic};
 
@@ -33,8 +33,8 @@ pub struct RadiosityArgs {
     #[arg(long)]
     pub scene: Option<PathBuf>,
     /// Form-factor method.
-    #[arg(long, default_value = "both", value_parser = ["hemisphere", "hemicube", "both"])]
-    pub method: String,
+    #[arg(long, value_enum, default_value_t = Methods::Both)]
+    pub method: Methods,
     /// Shots (shooting patches, the seed's N).
     #[arg(long, default_value_t = 6)]
     pub shots: usize,
@@ -49,11 +49,11 @@ pub struct RadiosityArgs {
     pub resolution: u32,
     /// Hemisphere edge rule: sign-of-c (docs/radiosity.md section 3) or seed (TR89-002's
     /// CASE 1 / CASE 2).
-    #[arg(long, default_value = "sign-of-c", value_parser = ["sign-of-c", "seed"])]
-    pub edge_rule: String,
+    #[arg(long, value_enum, default_value_t = EdgeRuleArg::SignOfC)]
+    pub edge_rule: EdgeRuleArg,
     /// Hemisphere delta form factors: exact (disk area) or seed (the seed's integral rule).
-    #[arg(long, default_value = "exact", value_parser = ["exact", "seed"])]
-    pub delta: String,
+    #[arg(long, value_enum, default_value_t = Delta::Exact)]
+    pub delta: Delta,
     /// Hemicube: transform and clip every receiver for every face (no cheap face test).
     #[arg(long)]
     pub all_faces: bool,
@@ -63,14 +63,14 @@ pub struct RadiosityArgs {
     pub shooters_at_once: u32,
     /// Hemisphere depth: taylor (the seed's quadratic approximation) or stored-w (w per pixel,
     /// exact, slower).
-    #[arg(long, default_value = "taylor", value_parser = ["taylor", "stored-w"])]
-    pub depth: String,
+    #[arg(long, value_enum, default_value_t = DepthArg::Taylor)]
+    pub depth: DepthArg,
     /// Output directory.
     #[arg(long, default_value = "out/radiosity")]
     pub out: PathBuf,
     /// Renderer fidelity level.
-    #[arg(long, default_value = "word", value_parser = ["bit", "word"])]
-    pub fidelity: String,
+    #[arg(long, value_enum, default_value_t = FidelityArg::Word)]
+    pub fidelity: FidelityArg,
     #[command(flatten)]
     pub traces: TraceArgs,
     /// Write the item (ID) buffers of these shots (0-based, comma-separated) as PNGs:
@@ -104,18 +104,10 @@ impl RadiosityArgs {
         FfOptions {
             method,
             resolution: self.resolution,
-            edge_rule: if self.edge_rule == "seed" {
-                EdgeRule::Seed
-            } else {
-                EdgeRule::SignOfC
-            },
-            exact_delta: self.delta == "exact",
+            edge_rule: self.edge_rule.into(),
+            exact_delta: self.delta.exact(),
             skip_faces: !self.all_faces,
-            depth: if self.depth == "stored-w" {
-                HemisphereDepth::StoredW
-            } else {
-                HemisphereDepth::Taylor
-            },
+            depth: self.depth.into(),
         }
     }
 }
@@ -158,7 +150,7 @@ fn run_method(
             write_atomic(&path, &item_png(b)?)?;
         }
     }
-    let several = args.method == "both";
+    let several = args.method == Methods::Both;
     args.traces
         .write(&result.recorder, |p| per_method(p, method, several))?;
     Ok(Measured {
@@ -199,18 +191,13 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
         Some(p) => pxpl5_radiosity::scene::load_radiosity_scene(p).map_err(config_cmd::report)?,
         None => pxpl5_radiosity::scenes::cornell_box(),
     };
-    let fidelity: Fidelity = args.fidelity.parse()?;
+    let fidelity = Fidelity::from(args.fidelity);
     let patches = mesh(&scene, args.patch_size).map_err(|e| UserError(e.to_string()))?;
     std::fs::create_dir_all(&args.out)
         .map_err(|e| UserError(format!("--out {}: cannot create: {e}", args.out.display())))?;
     probe_writable(&args.out)?;
-    let methods = match args.method.as_str() {
-        "hemisphere" => vec![Method::Hemisphere],
-        "hemicube" => vec![Method::Hemicube],
-        _ => vec![Method::Hemisphere, Method::Hemicube],
-    };
     let mut runs = Vec::new();
-    for m in methods {
+    for m in args.method.methods() {
         tracing::info!(
             method = %m.name(),
             patches = patches.len(),
@@ -458,8 +445,8 @@ pub struct FormFactorArgs {
     #[arg(long, allow_hyphen_values = true)]
     pub polygon: String,
     /// exact (the contour formula), hemisphere or hemicube (on the simulated machine).
-    #[arg(long, default_value = "exact", value_parser = ["exact", "hemisphere", "hemicube"])]
-    pub method: String,
+    #[arg(long, value_enum, default_value_t = FormFactorMethod::Exact)]
+    pub method: FormFactorMethod,
     /// Pixels across the disk or the hemicube's top face.
     #[arg(long, default_value_t = 128)]
     pub resolution: u32,
@@ -505,13 +492,9 @@ pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
     }
     let nn = normal.normalize();
     let exact = pxpl5_radiosity::exact::point_to_polygon(point, nn, &polygon);
-    let method = match args.method.as_str() {
-        "exact" => {
-            println!("exact form factor: {exact:.9}");
-            return Ok(());
-        }
-        "hemisphere" => Method::Hemisphere,
-        _ => Method::Hemicube,
+    let Some(method) = args.method.on_machine() else {
+        println!("exact form factor: {exact:.9}");
+        return Ok(());
     };
     let cfg = config_cmd::load(args.config.as_deref())?;
     let result = Rc::new(RefCell::new(FormFactorResult::default()));

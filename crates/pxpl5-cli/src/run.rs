@@ -17,6 +17,7 @@ use pxpl5_renderer::Fidelity;
 use pxpl5_trace::{TraceWindow, parse_time};
 
 use crate::UserError;
+use crate::choices::{FidelityArg, ProgramArg};
 use crate::config_cmd;
 
 /// Options of `pxpl5 run`.
@@ -26,8 +27,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// The program to run.
-    #[arg(long, default_value = "polygons", value_parser = ["polygons"])]
-    pub program: String,
+    #[arg(long, value_enum, default_value_t = ProgramArg::Polygons)]
+    pub program: ProgramArg,
     /// Scene file (RON; see programs/polygons/scenes/); default: the built-in scene.
     #[arg(long, conflicts_with = "triangles")]
     pub scene: Option<PathBuf>,
@@ -43,8 +44,8 @@ pub struct RunArgs {
     #[command(flatten)]
     pub traces: TraceArgs,
     /// Renderer fidelity level: bit or word (identical results and cycles).
-    #[arg(long, default_value = "word", value_parser = ["bit", "word"])]
-    pub fidelity: String,
+    #[arg(long, value_enum, default_value_t = FidelityArg::Word)]
+    pub fidelity: FidelityArg,
     /// Stop with an error if the run passes this much simulated time (e.g. 10s, 500ms).
     #[arg(long, default_value = "10s")]
     pub max_time: String,
@@ -60,7 +61,7 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
         (None, None) => scenes::builtin_scene(),
     };
     let max_time = parse_time(&args.max_time).map_err(|e| UserError(format!("--max-time: {e}")))?;
-    let fidelity: Fidelity = args.fidelity.parse()?;
+    let fidelity = Fidelity::from(args.fidelity);
 
     // Check every destination before spending time on the run.
     std::fs::create_dir_all(&args.out).map_err(|e| {
