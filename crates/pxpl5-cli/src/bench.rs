@@ -10,19 +10,20 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use clap::Args;
-use pxpl5_radiosity::shot::{FfOptions, Method};
+use pxpl5_radiosity::shot::FfOptions;
 use pxpl5_radiosity::stream::{Stream, cornell_stream};
 use pxpl5_renderer::{Board, Fidelity};
 
 use crate::UserError;
+use crate::choices::{BenchFidelity, Methods};
 use crate::config_cmd;
 
 /// Options of `pxpl5 bench renderer`.
 #[derive(Args, Clone, Debug)]
 pub struct RendererArgs {
     /// Fidelity level: bit (every micro-cycle on bit-planes), word (per-pixel integers), or all.
-    #[arg(long, default_value = "all", value_parser = ["bit", "word", "all"])]
-    pub fidelity: String,
+    #[arg(long, value_enum, default_value_t = BenchFidelity::All)]
+    pub fidelity: BenchFidelity,
     /// Machine config (RON); default: the embedded seed machine.
     #[arg(long)]
     pub config: Option<PathBuf>,
@@ -30,8 +31,8 @@ pub struct RendererArgs {
     #[arg(long)]
     pub json: bool,
     /// Form-factor method whose stream is timed: hemisphere, hemicube, or both.
-    #[arg(long, default_value = "both", value_parser = ["hemisphere", "hemicube", "both"])]
-    pub method: String,
+    #[arg(long, value_enum, default_value_t = Methods::Both)]
+    pub method: Methods,
     /// Shots of the Cornell box in the stream (the first of progressive refinement).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=64))]
     pub shots: u32,
@@ -46,10 +47,10 @@ pub struct RendererArgs {
 impl Default for RendererArgs {
     fn default() -> RendererArgs {
         RendererArgs {
-            fidelity: "all".to_string(),
+            fidelity: BenchFidelity::All,
             config: None,
             json: false,
-            method: "both".to_string(),
+            method: Methods::Both,
             shots: 3,
             resolution: 128,
             repeat: 3,
@@ -69,17 +70,9 @@ struct Measured {
 
 pub fn renderer(args: &RendererArgs) -> Result<(), UserError> {
     let cfg = config_cmd::load(args.config.as_deref())?;
-    let methods = match args.method.as_str() {
-        "hemisphere" => vec![Method::Hemisphere],
-        "hemicube" => vec![Method::Hemicube],
-        _ => vec![Method::Hemisphere, Method::Hemicube],
-    };
-    let levels: Vec<Fidelity> = match args.fidelity.as_str() {
-        "all" => vec![Fidelity::Bit, Fidelity::Word],
-        one => vec![one.parse()?],
-    };
+    let levels = args.fidelity.levels();
     let mut report = Vec::new();
-    for method in methods {
+    for method in args.method.methods() {
         let opts = FfOptions {
             method,
             resolution: args.resolution,

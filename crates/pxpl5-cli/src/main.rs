@@ -13,6 +13,7 @@
 //! error messages go to stderr.
 
 mod bench;
+mod choices;
 mod config_cmd;
 mod logging;
 mod radiosity;

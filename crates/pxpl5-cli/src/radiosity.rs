@@ -1,27 +1,28 @@
 //! `pxpl5 radiosity` (progressive radiosity with hemisphere and/or hemicube form factors on the
 //! machine, measured and set beside the seed's estimate) and `pxpl5 formfactor` (one point to
 //! one polygon, exactly or on the machine).
+//!
+//! Only parsing, printing and files live here: the experiment itself (runs, phase analysis, the
+//! seed's estimate, the comparison, pictures) is `pxpl5_radiosity`'s, so that another Rust
+//! program can run it. The command times each run on the host and prints those figures apart;
+//! they never reach a file.
 
-use std::cell::RefCell;
-use std::collections::BTreeMap;
-use std::path::PathBuf;
-use std::rc::Rc;
+use std::path::{Path, PathBuf};
 
 use clap::Args;
-use pxpl5_config::MachineConfig;
 use pxpl5_geom::DVec3;
-use pxpl5_machine::{Recorder, RunOptions, RunStats};
-use pxpl5_polygons::scene::{Camera, Triangle, TriangleScene};
+use pxpl5_machine::RunOptions;
+use pxpl5_radiosity::comparison::{Comparison, SEED_RATIO};
+use pxpl5_radiosity::experiment::{self, MethodRun, Settings};
 use pxpl5_radiosity::mesh::{Patch, mesh};
-use pxpl5_radiosity::program::{FormFactorProgram, FormFactorResult, RadiosityProgram, Solution};
+use pxpl5_radiosity::picture;
 use pxpl5_radiosity::scene::RadiosityScene;
 use pxpl5_radiosity::shot::{FfOptions, Method};
-use pxpl5_radiosity::views::{EdgeRule, HemisphereDepth};
-use pxpl5_renderer::Fidelity;
 
 use crate::UserError;
+use crate::choices::{Delta, DepthArg, EdgeRuleArg, FidelityArg, FormFactorMethod, Methods};
 use crate::config_cmd;
-use crate::run::{TraceArgs, png_bytes, probe_writable, simulate, write_atomic};
+use crate::run::{TraceArgs, png_bytes, probe_writable, timed, write_atomic};
 
 /// Options of `pxpl5 radiosity`.
 #[derive(Args, Clone, Debug)]
@@ -33,8 +34,8 @@ pub struct RadiosityArgs {
     #[arg(long)]
     pub scene: Option<PathBuf>,
     /// Form-factor method.
-    #[arg(long, default_value = "both", value_parser = ["hemisphere", "hemicube", "both"])]
-    pub method: String,
+    #[arg(long, value_enum, default_value_t = Methods::Both)]
+    pub method: Methods,
     /// Shots (shooting patches, the seed's N).
     #[arg(long, default_value_t = 6)]
     pub shots: usize,
@@ -49,11 +50,11 @@ pub struct RadiosityArgs {
     pub resolution: u32,
     /// Hemisphere edge rule: sign-of-c (docs/radiosity.md section 3) or seed (TR89-002's
     /// CASE 1 / CASE 2).
-    #[arg(long, default_value = "sign-of-c", value_parser = ["sign-of-c", "seed"])]
-    pub edge_rule: String,
+    #[arg(long, value_enum, default_value_t = EdgeRuleArg::SignOfC)]
+    pub edge_rule: EdgeRuleArg,
     /// Hemisphere delta form factors: exact (disk area) or seed (the seed's integral rule).
-    #[arg(long, default_value = "exact", value_parser = ["exact", "seed"])]
-    pub delta: String,
+    #[arg(long, value_enum, default_value_t = Delta::Exact)]
+    pub delta: Delta,
     /// Hemicube: transform and clip every receiver for every face (no cheap face test).
     #[arg(long)]
     pub all_faces: bool,
@@ -63,14 +64,14 @@ pub struct RadiosityArgs {
     pub shooters_at_once: u32,
     /// Hemisphere depth: taylor (the seed's quadratic approximation) or stored-w (w per pixel,
     /// exact, slower).
-    #[arg(long, default_value = "taylor", value_parser = ["taylor", "stored-w"])]
-    pub depth: String,
+    #[arg(long, value_enum, default_value_t = DepthArg::Taylor)]
+    pub depth: DepthArg,
     /// Output directory.
     #[arg(long, default_value = "out/radiosity")]
     pub out: PathBuf,
     /// Renderer fidelity level.
-    #[arg(long, default_value = "word", value_parser = ["bit", "word"])]
-    pub fidelity: String,
+    #[arg(long, value_enum, default_value_t = FidelityArg::Word)]
+    pub fidelity: FidelityArg,
     #[command(flatten)]
     pub traces: TraceArgs,
     /// Write the item (ID) buffers of these shots (0-based, comma-separated) as PNGs:
@@ -80,7 +81,7 @@ pub struct RadiosityArgs {
 }
 
 /// `path` with the method's name before its extension, when more than one method runs.
-fn per_method(path: &std::path::Path, method: Method, several: bool) -> PathBuf {
+fn per_method(path: &Path, method: Method, several: bool) -> PathBuf {
     if !several {
         return path.to_path_buf();
     }
@@ -100,97 +101,62 @@ impl RadiosityArgs {
             .expect("the defaults parse")
     }
 
-    fn ff_options(&self, method: Method) -> FfOptions {
-        FfOptions {
-            method,
-            resolution: self.resolution,
-            edge_rule: if self.edge_rule == "seed" {
-                EdgeRule::Seed
-            } else {
-                EdgeRule::SignOfC
+    /// The library's settings for one method's run.
+    fn settings(&self, method: Method) -> Settings {
+        Settings {
+            ff: FfOptions {
+                method,
+                resolution: self.resolution,
+                edge_rule: self.edge_rule.into(),
+                exact_delta: self.delta.exact(),
+                skip_faces: !self.all_faces,
+                depth: self.depth.into(),
             },
-            exact_delta: self.delta == "exact",
-            skip_faces: !self.all_faces,
-            depth: if self.depth == "stored-w" {
-                HemisphereDepth::StoredW
-            } else {
-                HemisphereDepth::Taylor
+            shots: self.shots,
+            threshold: self.threshold,
+            shooters_at_once: self.shooters_at_once as usize,
+            item_shots: self.item_buffers.clone(),
+            run: RunOptions {
+                fidelity: self.fidelity.into(),
+                ..Settings::default().run
             },
         }
     }
 }
 
-/// One method's measured run.
-struct Measured {
-    method: Method,
-    stats: RunStats,
-    solution: Solution,
-    host_seconds: f64,
-}
-
+/// Run `method` and write its item buffers and traces; returns the run and its host seconds.
 fn run_method(
-    cfg: &MachineConfig,
+    cfg: &pxpl5_config::MachineConfig,
     patches: &[Patch],
     args: &RadiosityArgs,
     method: Method,
-    fidelity: Fidelity,
-    recorder: Recorder,
-) -> Result<Measured, UserError> {
-    let mut program = RadiosityProgram::new(
-        patches.to_vec(),
-        args.ff_options(method),
-        args.shots,
-        args.threshold,
+) -> Result<(MethodRun, f64), UserError> {
+    tracing::info!(
+        method = %method.name(),
+        patches = patches.len(),
+        max_shots = args.shots,
+        "form-factor method starts"
     );
-    program.item_shots = args.item_buffers.clone();
-    program.shooters_at_once = args.shooters_at_once as usize;
-    let options = RunOptions {
-        fidelity,
-        max_time: pxpl5_sim::Tick(1_000_000_000_000_000),
-    };
-    let (result, host_seconds) = simulate(cfg, &program, options, recorder)?;
-    let solution = program.solution.borrow().clone();
-    for (shot, buffers) in program.item_buffers.borrow().iter() {
-        for b in buffers.borrow().iter() {
+    let recorder = args.traces.recorder()?;
+    let settings = args.settings(method);
+    let (run, host_seconds) = timed(
+        "radiosity",
+        settings.run.fidelity,
+        || experiment::run(cfg, patches, &settings, recorder),
+        |r| r.stats.end,
+    )?;
+    for (shot, views) in &run.item_buffers {
+        for b in views {
             let path = args
                 .out
                 .join(format!("items-{}-shot{shot}-{}.png", method.name(), b.view));
-            write_atomic(&path, &item_png(b)?)?;
+            write_atomic(&path, &png_bytes(&picture::item_buffer_picture(b))?)?;
         }
     }
-    let several = args.method == "both";
+    let several = args.method == Methods::Both;
     args.traces
-        .write(&result.recorder, |p| per_method(p, method, several))?;
-    Ok(Measured {
-        method,
-        stats: result.stats,
-        solution,
-        host_seconds,
-    })
-}
-
-/// The seed's estimate for M patches and N shots, in seconds: as written, and with its readback
-/// term multiplied by N (it happens once per shot).
-fn seed_estimate(m: usize, n: usize, method: Method) -> (f64, f64) {
-    let faces = if method == Method::Hemicube { 5.0 } else { 1.0 };
-    let broadcast = m as f64 * n as f64 / 1e6;
-    let readback = 128.0 * 128.0 / 80e6;
-    (
-        faces * (broadcast + readback),
-        faces * (broadcast + n as f64 * readback),
-    )
-}
-
-/// Phase spans of a run: name -> simulated seconds (span from first start to last end).
-fn phases(stats: &RunStats) -> BTreeMap<String, f64> {
-    let mut out = BTreeMap::new();
-    for p in &stats.phases {
-        out.insert(
-            p.name.clone(),
-            (p.gp_time.as_secs_f64()) / stats.gps.len() as f64,
-        );
-    }
-    out
+        .write(&run.recorder, |p| per_method(p, method, several))?;
+    Ok((run, host_seconds))
 }
 
 pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
@@ -199,112 +165,35 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
         Some(p) => pxpl5_radiosity::scene::load_radiosity_scene(p).map_err(config_cmd::report)?,
         None => pxpl5_radiosity::scenes::cornell_box(),
     };
-    let fidelity: Fidelity = args.fidelity.parse()?;
     let patches = mesh(&scene, args.patch_size).map_err(|e| UserError(e.to_string()))?;
     std::fs::create_dir_all(&args.out)
         .map_err(|e| UserError(format!("--out {}: cannot create: {e}", args.out.display())))?;
     probe_writable(&args.out)?;
-    let methods = match args.method.as_str() {
-        "hemisphere" => vec![Method::Hemisphere],
-        "hemicube" => vec![Method::Hemicube],
-        _ => vec![Method::Hemisphere, Method::Hemicube],
-    };
     let mut runs = Vec::new();
-    for m in methods {
-        tracing::info!(
-            method = %m.name(),
-            patches = patches.len(),
-            max_shots = args.shots,
-            "form-factor method starts"
-        );
-        let recorder = args.traces.recorder()?;
-        runs.push(run_method(&cfg, &patches, args, m, fidelity, recorder)?);
+    let mut host_seconds = Vec::new();
+    for method in args.method.methods() {
+        let (run, host) = run_method(&cfg, &patches, args, method)?;
+        runs.push(run);
+        host_seconds.push(host);
     }
-
-    // The comparison table.
-    let mut table = String::new();
-    let mut csv = String::from(
-        "method,shots,patches,simulated_s,per_shot_s,bottleneck,seed_estimate_s,seed_estimate_readback_x_n_s,reciprocity_clamps\n",
-    );
-    let mut json_methods = Vec::new();
-    table += &format!(
-        "Progressive radiosity on {} ({}), scene {}, {} patches of <= {} units, resolution {}\n\n",
-        cfg.name,
-        pxpl5_config::config_hash(&cfg),
-        scene.name,
+    let comparison = Comparison::new(
+        &cfg,
+        &scene.name,
         patches.len(),
         args.patch_size,
-        args.resolution
+        args.resolution,
+        &runs,
     );
-    for r in &runs {
-        let shots = r.solution.shots.len().max(1);
-        let total = r.stats.end.as_secs_f64();
-        let ph = phases(&r.stats);
-        let (bottleneck, _) = ph.iter().filter(|(k, _)| k.as_str() != "done").fold(
-            ("none".to_string(), -1.0),
-            |a, (k, v)| {
-                if *v > a.1 { (k.clone(), *v) } else { a }
-            },
-        );
-        let (seed, seed_n) = seed_estimate(patches.len(), shots, r.method);
-        table += &format!(
-            "{}: {} shots, {:.3} ms simulated ({:.3} ms per shot); seed's estimate {:.3} ms as written, {:.3} ms with readback x N\n",
-            r.method.name(),
-            r.solution.shots.len(),
-            total * 1e3,
-            total * 1e3 / shots as f64,
-            seed * 1e3,
-            seed_n * 1e3,
-        );
-        table += "  phase (mean GP time per shot, ms):";
-        for (k, v) in &ph {
-            table += &format!(" {k} {:.3};", v * 1e3 / shots as f64);
-        }
-        let renderer_busy: u64 = r.stats.renderers.iter().map(|x| x.busy.0).sum();
-        table += &format!(
-            "\n  Renderer busy {:.3} ms (all boards), ring {} payload words, bottleneck: {bottleneck}\n  reciprocity clamps {}, culled: {:?}\n  host {:.2} s\n\n",
-            renderer_busy as f64 / cfg.renderer.clock_hz as f64 * 1e3,
-            r.stats.ring.total.payload_words,
-            r.solution.reciprocity_clamps,
-            r.solution.culls,
-            r.host_seconds,
-        );
-        csv += &format!(
-            "{},{},{},{:.9},{:.9},{},{:.9},{:.9},{}\n",
-            r.method.name(),
-            r.solution.shots.len(),
-            patches.len(),
-            total,
-            total / shots as f64,
-            bottleneck,
-            seed,
-            seed_n,
-            r.solution.reciprocity_clamps
-        );
-        json_methods.push(serde_json::json!({
-            "method": r.method.name(),
-            "shots": r.solution.shots.len(),
-            "simulated_s": total,
-            "per_shot_s": total / shots as f64,
-            "phases_mean_gp_s": ph,
-            "bottleneck": bottleneck,
-            "seed_estimate_s": seed,
-            "seed_estimate_readback_x_n_s": seed_n,
-            "reciprocity_clamps": r.solution.reciprocity_clamps,
-            "stats": r.stats.to_json(),
-        }));
-    }
-    if let [a, b] = &runs[..] {
-        let ratio = b.stats.end.as_secs_f64() / a.stats.end.as_secs_f64();
-        table +=
-            &format!("measured hemicube / hemisphere time: {ratio:.2} (the seed's claim: 5)\n");
-    }
-    print!("{table}");
-    let json = serde_json::json!({ "config": cfg.name, "scene": scene.name, "patches": patches.len(), "methods": json_methods });
-    write_atomic(&args.out.join("comparison.csv"), csv.as_bytes())?;
+    print!("{}", table(&comparison, &host_seconds));
+    write_atomic(
+        &args.out.join("comparison.csv"),
+        comparison_csv(&comparison).as_bytes(),
+    )?;
     write_atomic(
         &args.out.join("comparison.json"),
-        (serde_json::to_string_pretty(&json).map_err(UserError::from)? + "\n").as_bytes(),
+        (serde_json::to_string_pretty(&comparison_json(&comparison)).map_err(UserError::from)?
+            + "\n")
+            .as_bytes(),
     )?;
     write_atomic(
         &args.out.join("config.ron"),
@@ -320,8 +209,13 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
     }
     write_atomic(&args.out.join("patches.csv"), pcsv.as_bytes())?;
     if let Some(camera) = &scene.camera {
-        let frame = render(&cfg, &patches, &last.solution, camera.clone())?;
-        write_atomic(&args.out.join("radiosity.png"), &png_bytes(&frame)?)?;
+        let (picture, _) = timed(
+            "polygons",
+            RunOptions::default().fidelity,
+            || picture::render(&cfg, &patches, &last.solution, camera.clone()),
+            |r| r.stats.end,
+        )?;
+        write_atomic(&args.out.join("radiosity.png"), &png_bytes(&picture.frame)?)?;
     }
     println!(
         "wrote {}/comparison.csv, comparison.json, patches.csv, config.ron, radiosity.png",
@@ -330,119 +224,92 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
     Ok(())
 }
 
-/// An item buffer as a picture: one colour per ID (a hash), black where nothing was drawn, the
-/// buffer's row 0 at the bottom.
-fn item_png(b: &pxpl5_radiosity::shot::ItemBuffer) -> Result<Vec<u8>, UserError> {
-    let mut rgb = Vec::with_capacity((b.width * b.rows * 3) as usize);
-    for row in (0..b.rows).rev() {
-        for col in 0..b.width {
-            let id = b.ids[(row * b.width + col) as usize];
-            if id == 0 {
-                rgb.extend([0, 0, 0]);
-            } else {
-                let h = u32::from(id).wrapping_mul(0x9E37_79B9);
-                rgb.extend([
-                    (h >> 24) as u8 | 0x40,
-                    (h >> 16) as u8 | 0x40,
-                    (h >> 8) as u8 | 0x40,
-                ]);
-            }
+/// The comparison as the table printed on stdout, with each run's host seconds.
+fn table(c: &Comparison, host_seconds: &[f64]) -> String {
+    let mut table = format!(
+        "Progressive radiosity on {} ({}), scene {}, {} patches of <= {} units, resolution {}\n\n",
+        c.config, c.config_hash, c.scene, c.patches, c.patch_size, c.resolution
+    );
+    for (m, host) in c.methods.iter().zip(host_seconds) {
+        let shots = m.shots.max(1);
+        table += &format!(
+            "{}: {} shots, {:.3} ms simulated ({:.3} ms per shot); seed's estimate {:.3} ms as written, {:.3} ms with readback x N\n",
+            m.method.name(),
+            m.shots,
+            m.simulated_s * 1e3,
+            m.simulated_s * 1e3 / shots as f64,
+            m.seed.as_written * 1e3,
+            m.seed.readback_x_n * 1e3,
+        );
+        table += "  phase (mean GP time per shot, ms):";
+        for (k, v) in &m.phases {
+            table += &format!(" {k} {:.3};", v * 1e3 / shots as f64);
         }
+        table += &format!(
+            "\n  Renderer busy {:.3} ms (all boards), ring {} payload words, bottleneck: {}\n  reciprocity clamps {}, culled: {:?}\n  host {host:.2} s\n\n",
+            m.renderer_busy_s * 1e3,
+            m.ring_payload_words,
+            m.bottleneck,
+            m.reciprocity_clamps,
+            m.culls,
+        );
     }
-    png_bytes(&pxpl5_machine::Frame {
-        width: b.width,
-        height: b.rows,
-        rgb,
-        writes: 0,
-    })
+    if let Some(ratio) = c.hemicube_over_hemisphere() {
+        table += &format!(
+            "measured hemicube / hemisphere time: {ratio:.2} (the seed's claim: {SEED_RATIO})\n"
+        );
+    }
+    table
 }
 
-/// The solution seen from the scene's camera, drawn by the simulated machine's polygon
-/// pipeline: patches as triangles, Gouraud-shaded from vertex radiosities (the mean of the
-/// patches of one surface meeting at a vertex), with the ambient term for display, tone-mapped.
-fn render(
-    cfg: &MachineConfig,
-    patches: &[Patch],
-    s: &Solution,
-    camera: Camera,
-) -> Result<pxpl5_machine::Frame, UserError> {
-    let area: f64 = patches.iter().map(|p| p.area).sum();
-    let mut rho = [0.0; 3];
-    let mut unshot = [0.0; 3];
-    for (p, u) in patches.iter().zip(&s.unshot) {
-        for k in 0..3 {
-            rho[k] += p.reflectance[k] * p.area / area;
-            unshot[k] += u[k] * p.area / area;
-        }
+/// The comparison as `comparison.csv`: a row per method.
+fn comparison_csv(c: &Comparison) -> String {
+    let mut csv = String::from(
+        "method,shots,patches,simulated_s,per_shot_s,bottleneck,seed_estimate_s,seed_estimate_readback_x_n_s,reciprocity_clamps\n",
+    );
+    for m in &c.methods {
+        csv += &format!(
+            "{},{},{},{:.9},{:.9},{},{:.9},{:.9},{}\n",
+            m.method.name(),
+            m.shots,
+            c.patches,
+            m.simulated_s,
+            m.per_shot_s,
+            m.bottleneck,
+            m.seed.as_written,
+            m.seed.readback_x_n,
+            m.reciprocity_clamps
+        );
     }
-    let display: Vec<[f64; 3]> = patches
+    csv
+}
+
+/// The comparison as `comparison.json`, with each run's full simulated stats.
+fn comparison_json(c: &Comparison) -> serde_json::Value {
+    let methods: Vec<_> = c
+        .methods
         .iter()
-        .zip(&s.radiosity)
-        .map(|(p, b)| {
-            let mut d = [0.0; 3];
-            for k in 0..3 {
-                let ambient = unshot[k] / (1.0 - rho[k]).max(1e-9);
-                d[k] = b[k] + p.reflectance[k] * ambient;
-            }
-            d
+        .map(|m| {
+            serde_json::json!({
+                "method": m.method.name(),
+                "shots": m.shots,
+                "simulated_s": m.simulated_s,
+                "per_shot_s": m.per_shot_s,
+                "phases_mean_gp_s": m.phases,
+                "bottleneck": m.bottleneck,
+                "seed_estimate_s": m.seed.as_written,
+                "seed_estimate_readback_x_n_s": m.seed.readback_x_n,
+                "reciprocity_clamps": m.reciprocity_clamps,
+                "stats": m.stats.to_json(),
+            })
         })
         .collect();
-    // Vertex radiosity: mean over the patches of the same surface sharing the vertex.
-    let key = |surface: usize, v: DVec3| {
-        (
-            surface,
-            (v[0] * 1e3).round() as i64,
-            (v[1] * 1e3).round() as i64,
-            (v[2] * 1e3).round() as i64,
-        )
-    };
-    // (surface, vertex position in thousandths) -> (summed radiosity, patch count).
-    type VertexSums = BTreeMap<(usize, i64, i64, i64), ([f64; 3], f64)>;
-    let mut sums = VertexSums::new();
-    for (p, d) in patches.iter().zip(&display) {
-        for v in &p.vertices {
-            let e = sums.entry(key(p.surface, *v)).or_insert(([0.0; 3], 0.0));
-            for (sum, x) in e.0.iter_mut().zip(d) {
-                *sum += x;
-            }
-            e.1 += 1.0;
-        }
-    }
-    // Tone map: scale so the 95th percentile of patch luminance maps to 0.9, then gamma 2.2.
-    let mut lum: Vec<f64> = display.iter().map(|d| (d[0] + d[1] + d[2]) / 3.0).collect();
-    lum.sort_by(f64::total_cmp);
-    let white = lum
-        .get(lum.len() * 95 / 100)
-        .copied()
-        .unwrap_or(1.0)
-        .max(1e-12)
-        / 0.9;
-    let tone = |x: f64| (x / white).clamp(0.0, 1.0).powf(1.0 / 2.2);
-    let mut triangles = Vec::new();
-    for p in patches {
-        let colours: Vec<(f64, f64, f64)> = p
-            .vertices
-            .iter()
-            .map(|v| {
-                let (c, n) = sums[&key(p.surface, *v)];
-                (tone(c[0] / n), tone(c[1] / n), tone(c[2] / n))
-            })
-            .collect();
-        for k in 1..p.vertices.len() - 1 {
-            let idx = [0, k, k + 1];
-            triangles.push(Triangle {
-                vertices: idx
-                    .iter()
-                    .map(|&i| (p.vertices[i][0], p.vertices[i][1], p.vertices[i][2]))
-                    .collect(),
-                colours: idx.iter().map(|&i| colours[i]).collect(),
-            });
-        }
-    }
-    let tscene = TriangleScene { camera, triangles };
-    let program = pxpl5_polygons::Polygons::new(tscene);
-    let (result, _) = simulate(cfg, &program, RunOptions::default(), Recorder::default())?;
-    Ok(result.frame)
+    serde_json::json!({
+        "config": c.config,
+        "scene": c.scene,
+        "patches": c.patches,
+        "methods": methods,
+    })
 }
 
 /// Options of `pxpl5 formfactor`.
@@ -458,8 +325,8 @@ pub struct FormFactorArgs {
     #[arg(long, allow_hyphen_values = true)]
     pub polygon: String,
     /// exact (the contour formula), hemisphere or hemicube (on the simulated machine).
-    #[arg(long, default_value = "exact", value_parser = ["exact", "hemisphere", "hemicube"])]
-    pub method: String,
+    #[arg(long, value_enum, default_value_t = FormFactorMethod::Exact)]
+    pub method: FormFactorMethod,
     /// Pixels across the disk or the hemicube's top face.
     #[arg(long, default_value_t = 128)]
     pub resolution: u32,
@@ -505,30 +372,24 @@ pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
     }
     let nn = normal.normalize();
     let exact = pxpl5_radiosity::exact::point_to_polygon(point, nn, &polygon);
-    let method = match args.method.as_str() {
-        "exact" => {
-            println!("exact form factor: {exact:.9}");
-            return Ok(());
-        }
-        "hemisphere" => Method::Hemisphere,
-        _ => Method::Hemicube,
+    let Some(method) = args.method.on_machine() else {
+        println!("exact form factor: {exact:.9}");
+        return Ok(());
     };
     let cfg = config_cmd::load(args.config.as_deref())?;
-    let result = Rc::new(RefCell::new(FormFactorResult::default()));
-    let program = FormFactorProgram {
-        point,
-        normal: nn,
-        polygons: vec![polygon],
-        options: FfOptions {
-            method,
-            resolution: args.resolution,
-            ..FfOptions::default()
-        },
-        result: result.clone(),
+    let options = FfOptions {
+        method,
+        resolution: args.resolution,
+        ..FfOptions::default()
     };
-    let (run, _) = simulate(&cfg, &program, RunOptions::default(), Recorder::default())?;
-    let f = result.borrow().form_factors[0];
-    let renderer: u64 = run.stats.renderers.iter().map(|r| r.busy.0).sum();
+    let (measured, _) = timed(
+        "formfactor",
+        RunOptions::default().fidelity,
+        || experiment::form_factor(&cfg, point, nn, polygon, options),
+        |r| r.stats.end,
+    )?;
+    let (f, stats) = (measured.form_factor, &measured.stats);
+    let renderer: u64 = stats.renderers.iter().map(|r| r.busy.0).sum();
     println!(
         "{} form factor: {f:.9} (exact {exact:.9}, error {:+.3}%)",
         method.name(),
@@ -540,11 +401,35 @@ pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
     );
     println!(
         "simulated: {:.3} us on {}; Renderer busy {} cycles (all boards); GP 0 busy {} cycles; ring {} payload words",
-        run.stats.end.as_secs_f64() * 1e6,
+        stats.end.as_secs_f64() * 1e6,
         cfg.name,
         renderer,
-        run.stats.gps[0].busy.0,
-        run.stats.ring.total.payload_words
+        stats.gps[0].busy.0,
+        stats.ring.total.payload_words
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `pxpl5 radiosity` with no flags runs the library's default experiment.
+    #[test]
+    fn the_defaults_are_the_librarys() {
+        let args = RadiosityArgs::defaults();
+        let (ours, lib) = (args.settings(Method::Hemisphere), Settings::default());
+        assert_eq!(ours.ff.method, lib.ff.method);
+        assert_eq!(ours.ff.resolution, lib.ff.resolution);
+        assert_eq!(ours.ff.edge_rule, lib.ff.edge_rule);
+        assert_eq!(ours.ff.depth, lib.ff.depth);
+        assert_eq!(ours.ff.exact_delta, lib.ff.exact_delta);
+        assert_eq!(ours.ff.skip_faces, lib.ff.skip_faces);
+        assert_eq!(ours.shots, lib.shots);
+        assert_eq!(ours.threshold, lib.threshold);
+        assert_eq!(ours.shooters_at_once, lib.shooters_at_once);
+        assert_eq!(ours.item_shots, lib.item_shots);
+        assert_eq!(ours.run.fidelity, lib.run.fidelity);
+        assert_eq!(ours.run.max_time, lib.run.max_time);
+    }
 }

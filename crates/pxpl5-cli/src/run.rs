@@ -11,12 +11,14 @@ use std::time::Instant;
 
 use clap::Args;
 use pxpl5_config::MachineConfig;
-use pxpl5_machine::{Frame, Machine, Program, Recorder, RunOptions, RunResult};
+use pxpl5_machine::{Frame, Machine, Program, Recorder, RunError, RunOptions, RunResult};
 use pxpl5_polygons::{Polygons, scenes};
 use pxpl5_renderer::Fidelity;
+use pxpl5_sim::Tick;
 use pxpl5_trace::{TraceWindow, parse_time};
 
 use crate::UserError;
+use crate::choices::{FidelityArg, ProgramArg};
 use crate::config_cmd;
 
 /// Options of `pxpl5 run`.
@@ -26,8 +28,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// The program to run.
-    #[arg(long, default_value = "polygons", value_parser = ["polygons"])]
-    pub program: String,
+    #[arg(long, value_enum, default_value_t = ProgramArg::Polygons)]
+    pub program: ProgramArg,
     /// Scene file (RON; see programs/polygons/scenes/); default: the built-in scene.
     #[arg(long, conflicts_with = "triangles")]
     pub scene: Option<PathBuf>,
@@ -43,8 +45,8 @@ pub struct RunArgs {
     #[command(flatten)]
     pub traces: TraceArgs,
     /// Renderer fidelity level: bit or word (identical results and cycles).
-    #[arg(long, default_value = "word", value_parser = ["bit", "word"])]
-    pub fidelity: String,
+    #[arg(long, value_enum, default_value_t = FidelityArg::Word)]
+    pub fidelity: FidelityArg,
     /// Stop with an error if the run passes this much simulated time (e.g. 10s, 500ms).
     #[arg(long, default_value = "10s")]
     pub max_time: String,
@@ -60,7 +62,7 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
         (None, None) => scenes::builtin_scene(),
     };
     let max_time = parse_time(&args.max_time).map_err(|e| UserError(format!("--max-time: {e}")))?;
-    let fidelity: Fidelity = args.fidelity.parse()?;
+    let fidelity = Fidelity::from(args.fidelity);
 
     // Check every destination before spending time on the run.
     std::fs::create_dir_all(&args.out).map_err(|e| {
@@ -111,28 +113,38 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
 }
 
 /// Build the machine of `cfg`, run `program` on it to completion, and return the result with the
-/// host seconds both took. Logs the run's start and end (simulated time, host seconds) at info
-/// level.
+/// host seconds both took; logged as [`timed`] says.
 pub fn simulate(
     cfg: &MachineConfig,
     program: &dyn Program,
     options: RunOptions,
     recorder: Recorder,
 ) -> Result<(RunResult, f64), UserError> {
-    tracing::info!(
-        program = %program.name(),
-        fidelity = %options.fidelity.name(),
-        "simulation starts"
-    );
+    timed(
+        program.name(),
+        options.fidelity,
+        || Machine::new(cfg, program, options, recorder)?.run(),
+        |r| r.stats.end,
+    )
+}
+
+/// Call `run`, one simulation of `program` at `fidelity` (a library call that builds and runs a
+/// machine), and return its result with the host seconds it took. Logs the start and the end
+/// (simulated time, `end` of the result; host seconds) at info level. Host time is measured
+/// here, not in the libraries, so that nothing they return depends on the host.
+pub fn timed<T>(
+    program: &str,
+    fidelity: Fidelity,
+    run: impl FnOnce() -> Result<T, RunError>,
+    end: impl FnOnce(&T) -> Tick,
+) -> Result<(T, f64), UserError> {
+    tracing::info!(program = %program, fidelity = %fidelity.name(), "simulation starts");
     let t0 = Instant::now();
-    let result = Machine::new(cfg, program, options, recorder)
-        .map_err(UserError::from)?
-        .run()
-        .map_err(UserError::from)?;
+    let result = run().map_err(UserError::from)?;
     let host_seconds = t0.elapsed().as_secs_f64();
     tracing::info!(
-        program = %program.name(),
-        simulated_ms = %format!("{:.6}", result.stats.end.as_secs_f64() * 1e3),
+        program = %program,
+        simulated_ms = %format!("{:.6}", end(&result).as_secs_f64() * 1e3),
         host_s = %format!("{host_seconds:.3}"),
         "simulation ends"
     );

@@ -3,12 +3,21 @@
 //! as GP code ([`views`]), one shot's form factors on the machine ([`shot`]), the programs the
 //! machine runs ([`program`]), host reference solutions ([`solver`]), and the Renderer command
 //! stream of a few shots that the benchmarks time ([`stream`]).
+//!
+//! The experiment `pxpl5 radiosity` reports, usable from any Rust program: one method's run on a
+//! machine config and its phase analysis ([`experiment`]), the seed's estimate ([`seed`]), the
+//! methods side by side ([`comparison`]), and pictures of the solution and of item buffers
+//! ([`picture`]).
 
+pub mod comparison;
 pub mod exact;
+pub mod experiment;
 pub mod mesh;
+pub mod picture;
 pub mod program;
 pub mod scene;
 pub mod scenes;
+pub mod seed;
 pub mod shot;
 pub mod solver;
 pub mod stream;

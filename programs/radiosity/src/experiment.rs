@@ -1,0 +1,168 @@
+//! One radiosity experiment on a machine config, as `pxpl5 radiosity` runs it and any other Rust
+//! program can: progressive refinement of a meshed scene with one form-factor method
+//! ([`run`]), the run's measured results ([`MethodRun`]), and the per-phase analysis that names
+//! its bottleneck ([`phase_times`], [`bottleneck`]). Also one point-to-polygon form factor on the
+//! machine ([`form_factor`], `pxpl5 formfactor`).
+//!
+//! Nothing here reads a host clock or writes a file: callers time the runs and write what they
+//! want, so every result of this module is simulated and reproducible.
+
+use std::cell::RefCell;
+use std::collections::BTreeMap;
+use std::rc::Rc;
+
+use pxpl5_config::MachineConfig;
+use pxpl5_geom::DVec3;
+use pxpl5_machine::{Machine, Recorder, RunError, RunOptions, RunStats};
+use pxpl5_renderer::Fidelity;
+use pxpl5_sim::Tick;
+
+use crate::mesh::Patch;
+use crate::program::{FormFactorProgram, FormFactorResult, RadiosityProgram, Solution};
+use crate::shot::{FfOptions, ItemBuffer, Method};
+
+/// How one method runs: the form-factor options (with the method), the refinement's limits, and
+/// the machine run's options. The defaults are `pxpl5 radiosity`'s.
+#[derive(Clone, Debug)]
+pub struct Settings {
+    pub ff: FfOptions,
+    /// Most shots to take (the seed's N).
+    pub shots: usize,
+    /// Stop early when max unshot power / emitted power falls below this.
+    pub threshold: f64,
+    /// Shooters per batch, their views spread over the Renderers (1: classic progressive
+    /// refinement).
+    pub shooters_at_once: usize,
+    /// Shots (0-based) whose item buffers to keep.
+    pub item_shots: Vec<usize>,
+    pub run: RunOptions,
+}
+
+impl Default for Settings {
+    fn default() -> Settings {
+        Settings {
+            ff: FfOptions::default(),
+            shots: 6,
+            threshold: 0.001,
+            shooters_at_once: 1,
+            item_shots: Vec::new(),
+            run: RunOptions {
+                fidelity: Fidelity::Word,
+                // 1,000 simulated seconds, far beyond the machine's default of 10: a fine mesh
+                // with many shots may need it, and a runaway program still stops.
+                max_time: Tick(1_000_000_000_000_000),
+            },
+        }
+    }
+}
+
+/// One method's measured run.
+pub struct MethodRun {
+    pub method: Method,
+    /// Simulated statistics of the whole run.
+    pub stats: RunStats,
+    /// The solution at the end of the run.
+    pub solution: Solution,
+    /// The kept item buffers: (shot, its views), in the order the shots were taken.
+    pub item_buffers: Vec<(usize, Vec<ItemBuffer>)>,
+    /// The run's traces, as recorded by the recorder given to [`run`].
+    pub recorder: Recorder,
+}
+
+impl MethodRun {
+    /// Shots taken (the run may stop early at its threshold).
+    pub fn shots_taken(&self) -> usize {
+        self.solution.shots.len()
+    }
+}
+
+/// Progressive refinement of `patches` on the machine of `cfg` with `settings`, recording traces
+/// with `recorder`.
+pub fn run(
+    cfg: &MachineConfig,
+    patches: &[Patch],
+    settings: &Settings,
+    recorder: Recorder,
+) -> Result<MethodRun, RunError> {
+    let mut program = RadiosityProgram::new(
+        patches.to_vec(),
+        settings.ff,
+        settings.shots,
+        settings.threshold,
+    );
+    program.item_shots = settings.item_shots.clone();
+    program.shooters_at_once = settings.shooters_at_once;
+    let result = Machine::new(cfg, &program, settings.run.clone(), recorder)?.run()?;
+    // The machine is gone, so the program's shared state has no other reader: move it out.
+    let solution = std::mem::take(&mut *program.solution.borrow_mut());
+    let item_buffers = std::mem::take(&mut *program.item_buffers.borrow_mut())
+        .into_iter()
+        .map(|(shot, views)| (shot, std::mem::take(&mut *views.borrow_mut())))
+        .collect();
+    Ok(MethodRun {
+        method: settings.ff.method,
+        stats: result.stats,
+        solution,
+        item_buffers,
+        recorder: result.recorder,
+    })
+}
+
+/// The simulated seconds of each phase the GPs marked, over the whole run: the time every GP
+/// spent in it, divided by the number of GPs (so phases add up to about the run's time).
+pub fn phase_times(stats: &RunStats) -> BTreeMap<String, f64> {
+    stats
+        .phases
+        .iter()
+        .map(|p| {
+            (
+                p.name.clone(),
+                p.gp_time.as_secs_f64() / stats.gps.len() as f64,
+            )
+        })
+        .collect()
+}
+
+/// The phase that took the most time, `done` (the GPs' idle tail) excepted; "none" when there is
+/// no other. A tie goes to the phase whose name comes first.
+pub fn bottleneck(phases: &BTreeMap<String, f64>) -> String {
+    let mut best = ("none", -1.0);
+    for (name, &seconds) in phases {
+        if name != "done" && seconds > best.1 {
+            best = (name, seconds);
+        }
+    }
+    best.0.to_string()
+}
+
+/// One form factor computed on the machine, with the run that computed it.
+pub struct MachineFormFactor {
+    pub form_factor: f64,
+    pub stats: RunStats,
+}
+
+/// The form factor from `point` with unit `normal` to the planar convex `polygon`, computed on
+/// the machine of `cfg` with `options` (the polygon is seen from whichever side faces the
+/// point). The exact value is [`crate::exact::point_to_polygon`].
+pub fn form_factor(
+    cfg: &MachineConfig,
+    point: DVec3,
+    normal: DVec3,
+    polygon: Vec<DVec3>,
+    options: FfOptions,
+) -> Result<MachineFormFactor, RunError> {
+    let result = Rc::new(RefCell::new(FormFactorResult::default()));
+    let program = FormFactorProgram {
+        point,
+        normal,
+        polygons: vec![polygon],
+        options,
+        result: result.clone(),
+    };
+    let run = Machine::new(cfg, &program, RunOptions::default(), Recorder::default())?.run()?;
+    let form_factor = result.borrow().form_factors[0];
+    Ok(MachineFormFactor {
+        form_factor,
+        stats: run.stats,
+    })
+}

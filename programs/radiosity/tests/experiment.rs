@@ -1,0 +1,113 @@
+//! The experiment `pxpl5 radiosity` reports, run through the library as any Rust program can:
+//! both methods on a coarse Cornell box, a comparison whose figures agree with the runs and the
+//! seed's estimate, kept item buffers, the picture drawn on the machine; and one form factor on
+//! the machine near the exact value.
+
+use pxpl5_geom::DVec3;
+use pxpl5_machine::Recorder;
+use pxpl5_radiosity::comparison::Comparison;
+use pxpl5_radiosity::experiment::{self, Settings, bottleneck};
+use pxpl5_radiosity::mesh::mesh;
+use pxpl5_radiosity::seed::seed_estimate;
+use pxpl5_radiosity::shot::{FfOptions, Method};
+use pxpl5_radiosity::{exact, picture, scenes};
+
+#[test]
+fn both_methods_compared_and_pictured() {
+    let cfg = pxpl5_config::default_config();
+    let scene = scenes::cornell_box();
+    let patches = mesh(&scene, 300.0).expect("the Cornell box meshes");
+    let runs: Vec<_> = [Method::Hemisphere, Method::Hemicube]
+        .into_iter()
+        .map(|method| {
+            let settings = Settings {
+                ff: FfOptions {
+                    method,
+                    resolution: 32,
+                    ..FfOptions::default()
+                },
+                shots: 2,
+                item_shots: vec![0],
+                ..Settings::default()
+            };
+            experiment::run(&cfg, &patches, &settings, Recorder::default()).expect("runs")
+        })
+        .collect();
+    let c = Comparison::new(&cfg, &scene.name, patches.len(), 300.0, 32, &runs);
+    assert_eq!(c.methods.len(), 2);
+    for (m, run) in c.methods.iter().zip(&runs) {
+        assert_eq!((m.method, m.shots), (run.method, 2));
+        assert_eq!(m.simulated_s, run.stats.end.as_secs_f64());
+        assert_eq!(m.per_shot_s, m.simulated_s / 2.0);
+        assert_eq!(m.seed, seed_estimate(patches.len(), 2, m.method));
+        assert!(m.phases.contains_key(&m.bottleneck) && m.bottleneck != "done");
+        // Phases are mean GP time, each GP's from its first phase mark to its own end, so
+        // together they cover most of the run and never more.
+        let phases: f64 = m.phases.values().sum();
+        assert!(
+            phases <= m.simulated_s && phases > 0.5 * m.simulated_s,
+            "{phases}"
+        );
+        assert!(m.renderer_busy_s > 0.0 && m.ring_payload_words > 0);
+
+        let (shot, views) = &run.item_buffers[0];
+        assert_eq!(*shot, 0);
+        let b = views.first().expect("shot 0's item buffers are kept");
+        let frame = picture::item_buffer_picture(b);
+        assert_eq!(frame.rgb.len(), (b.width * b.rows * 3) as usize);
+        assert!(frame.rgb.iter().any(|&x| x != 0), "no patch seen");
+    }
+    let ratio = c.hemicube_over_hemisphere().expect("both methods ran");
+    assert_eq!(ratio, c.methods[1].simulated_s / c.methods[0].simulated_s);
+
+    let camera = scene.camera.clone().expect("the Cornell box has a camera");
+    let drawn = picture::render(&cfg, &patches, &runs[1].solution, camera).expect("draws");
+    let lit = drawn
+        .frame
+        .rgb
+        .chunks(3)
+        .filter(|p| p.iter().any(|&x| x > 0));
+    assert!(
+        lit.count() > drawn.frame.rgb.len() / 3 / 4,
+        "the box fills the picture"
+    );
+}
+
+#[test]
+fn the_bottleneck_skips_done_and_breaks_ties_by_name() {
+    let phases = |v: &[(&str, f64)]| v.iter().map(|&(k, s)| (k.to_string(), s)).collect();
+    assert_eq!(bottleneck(&phases(&[])), "none");
+    assert_eq!(bottleneck(&phases(&[("done", 9.0)])), "none");
+    let b = bottleneck(&phases(&[
+        ("done", 9.0),
+        ("b", 2.0),
+        ("a", 2.0),
+        ("c", 1.0),
+    ]));
+    assert_eq!(b, "a");
+}
+
+#[test]
+fn one_form_factor_on_the_machine() {
+    let cfg = pxpl5_config::default_config();
+    let (point, normal) = (DVec3::ZERO, DVec3::new(0.0, 0.0, 1.0));
+    let square: Vec<DVec3> = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+        .iter()
+        .map(|&(x, y)| DVec3::new(x, y, 1.0))
+        .collect();
+    let want = exact::point_to_polygon(point, normal, &square);
+    for method in [Method::Hemisphere, Method::Hemicube] {
+        let options = FfOptions {
+            method,
+            ..FfOptions::default()
+        };
+        let got =
+            experiment::form_factor(&cfg, point, normal, square.clone(), options).expect("runs");
+        assert!(
+            (got.form_factor - want).abs() < 0.01 * want,
+            "{method:?}: {} vs {want}",
+            got.form_factor
+        );
+        assert!(got.stats.end.as_secs_f64() > 0.0);
+    }
+}
