@@ -239,18 +239,7 @@ mod tests {
     use crate::scenes::{closed_box, empty_box};
 
     fn one(vertices: &[(f64, f64, f64)]) -> RadiosityScene {
-        RadiosityScene {
-            name: "one".into(),
-            provenance: String::new(),
-            camera: None,
-            surfaces: vec![Surface {
-                name: "poly".into(),
-                object: None,
-                vertices: vertices.to_vec(),
-                reflectance: (0.25, 0.5, 0.75),
-                emission: (1.0, 2.0, 3.0),
-            }],
-        }
+        RadiosityScene::one_surface(vertices, (0.25, 0.5, 0.75), (1.0, 2.0, 3.0))
     }
 
     fn total_area(patches: &[Patch]) -> f64 {

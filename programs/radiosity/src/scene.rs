@@ -69,6 +69,24 @@ pub struct Surface {
     pub emission: Vec3,
 }
 
+impl RadiosityScene {
+    /// A scene of one surface named "poly" (for tests and examples), not checked.
+    pub fn one_surface(vertices: &[Vec3], reflectance: Vec3, emission: Vec3) -> RadiosityScene {
+        RadiosityScene {
+            name: "one".into(),
+            provenance: String::new(),
+            camera: None,
+            surfaces: vec![Surface {
+                name: "poly".into(),
+                object: None,
+                vertices: vertices.to_vec(),
+                reflectance,
+                emission,
+            }],
+        }
+    }
+}
+
 impl Surface {
     /// The vertices as vectors.
     pub fn points(&self) -> Vec<DVec3> {
@@ -275,18 +293,7 @@ mod tests {
     }
 
     fn surface(vertices: &[Vec3]) -> RadiosityScene {
-        RadiosityScene {
-            name: "one".into(),
-            provenance: String::new(),
-            camera: None,
-            surfaces: vec![Surface {
-                name: "poly".into(),
-                object: None,
-                vertices: vertices.to_vec(),
-                reflectance: (0.5, 0.5, 0.5),
-                emission: (0.0, 0.0, 0.0),
-            }],
-        }
+        RadiosityScene::one_surface(vertices, (0.5, 0.5, 0.5), (0.0, 0.0, 0.0))
     }
 
     fn errors_of(vertices: &[Vec3]) -> Vec<SemanticError> {
