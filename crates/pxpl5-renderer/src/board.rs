@@ -207,7 +207,7 @@ impl Engine {
 pub struct Board {
     cfg: RendererConfig,
     geometry: Geometry,
-    word_bits: u32,
+    ring_word_bits: u32,
     /// Most ring words per readback message (see [`Board::stream_readbacks`]).
     max_message_words: u32,
     engine: Engine,
@@ -233,7 +233,7 @@ impl Board {
         Board {
             cfg: cfg.clone(),
             geometry,
-            word_bits: ring_word_bits,
+            ring_word_bits,
             max_message_words: u32::MAX,
             engine,
             origin: (0, 0),
@@ -309,7 +309,7 @@ impl Board {
 
     /// The pixel (or board-state) effect of a validated command that ends at cycle `end`.
     fn apply(&mut self, cmd: &Command, end: Cycles, readback: &mut Option<ReadbackStream>) {
-        let gated = self.engine.get().registers().active_words(None);
+        let gated = self.engine.get().registers().active_groups(None);
         // The QEE's streams for this board's origin and size.
         let (origin, g) = (self.origin, self.geometry);
         let streams = |expr: &crate::QeeExpr| Streams::new(expr, origin, g.width, g.height);
@@ -328,7 +328,7 @@ impl Board {
                     .engine
                     .get()
                     .registers()
-                    .active_words(enable_write(dst, combine));
+                    .active_groups(enable_write(dst, combine));
                 let s = streams(expr);
                 self.engine
                     .get_mut()
@@ -356,7 +356,7 @@ impl Board {
                     .engine
                     .get()
                     .registers()
-                    .active_words(enable_write(dst, combine));
+                    .active_groups(enable_write(dst, combine));
                 let s = streams(expr);
                 let sink = QeeSink::Compare {
                     field,
@@ -393,7 +393,7 @@ impl Board {
                     .engine
                     .get()
                     .registers()
-                    .active_words(enable_write(dst, combine));
+                    .active_groups(enable_write(dst, combine));
                 self.engine
                     .get_mut()
                     .compare(a, b, cmp, dst, combine, &active);
@@ -408,22 +408,22 @@ impl Board {
                 // The data are copied at issue: the interlock keeps every later access to the
                 // field behind the transfer's end, so no command can see the difference.
                 let planes = self.engine.get().read_planes(field);
-                let words = self.geometry.words;
+                let groups = self.geometry.groups;
                 let block_bits = self.cfg.backing_store.block_bits as usize;
-                for (i, chunk) in planes.chunks(block_bits * words).enumerate() {
+                for (i, chunk) in planes.chunks(block_bits * groups).enumerate() {
                     let stored = self
                         .backing_store
                         .entry(block + i as u32)
-                        .or_insert_with(|| vec![0; block_bits * words]);
+                        .or_insert_with(|| vec![0; block_bits * groups]);
                     stored[..chunk.len()].copy_from_slice(chunk);
                 }
                 self.start_transfer(field, end);
             }
             Command::Load { field, block } => {
-                let words = self.geometry.words;
+                let groups = self.geometry.groups;
                 let block_bits = self.cfg.backing_store.block_bits as usize;
-                let mut planes = vec![0u64; field.bits as usize * words];
-                for (i, chunk) in planes.chunks_mut(block_bits * words).enumerate() {
+                let mut planes = vec![0u64; field.bits as usize * groups];
+                for (i, chunk) in planes.chunks_mut(block_bits * groups).enumerate() {
                     // A block never saved reads as zeros (the simulator's definition of VRAM
                     // never written).
                     if let Some(stored) = self.backing_store.get(&(block + i as u32)) {
@@ -454,7 +454,7 @@ impl Board {
                         &values,
                         rect,
                         field.bits,
-                        self.word_bits,
+                        self.ring_word_bits,
                         self.max_message_words,
                     ),
                 });
@@ -692,13 +692,13 @@ impl Board {
     /// One one-bit register of every pixel, row by row.
     pub fn bit_values(&self, b: Bit) -> Vec<bool> {
         let regs = self.engine.get().registers();
-        (0..self.geometry.words * 64)
+        (0..self.geometry.groups * 64)
             .map(|p| (regs.get(b, p / 64) >> (p % 64)) & 1 != 0)
             .collect()
     }
 }
 
-/// Which writes to enable a command makes, for [`crate::engine::Registers::active_words`].
+/// Which writes to enable a command makes, for [`crate::engine::Registers::active_groups`].
 fn enable_write(dst: Bit, combine: crate::LogicOp) -> Option<crate::LogicOp> {
     match dst {
         Bit::Enable => Some(combine),
@@ -719,12 +719,12 @@ pub struct BoardImage {
 
 impl BoardImage {
     /// SHA-256 of the state, hex: enable, flags, memory planes, then each written backing-store
-    /// block with its number, all as little-endian u64 words.
+    /// block with its number, each u64 little-endian.
     pub fn digest(&self) -> String {
         let mut h = Sha256::new();
-        let mut put = |words: &[u64]| {
-            for w in words {
-                h.update(w.to_le_bytes());
+        let mut put = |values: &[u64]| {
+            for v in values {
+                h.update(v.to_le_bytes());
             }
         };
         put(&self.enable);
