@@ -75,7 +75,7 @@ pub fn renderer(args: &RendererArgs) -> Result<(), UserError> {
         _ => vec![Method::Hemisphere, Method::Hemicube],
     };
     let levels: Vec<Fidelity> = match args.fidelity.as_str() {
-        "all" => vec![Fidelity::Bit, Fidelity::Word],
+        "all" => vec![Fidelity::Bit, Fidelity::Integer],
         one => vec![one.parse()?],
     };
     let mut report = Vec::new();

@@ -20,7 +20,7 @@ pub struct RunOptions {
 impl Default for RunOptions {
     fn default() -> RunOptions {
         RunOptions {
-            fidelity: Fidelity::Word,
+            fidelity: Fidelity::Integer,
             // 10 simulated seconds: far beyond any shipped program's run.
             max_time: Tick(10_000_000_000_000),
         }

@@ -18,7 +18,7 @@ use thiserror::Error;
 use crate::command::{Bit, Command, Field, Rect};
 use crate::cycles::{backing_store_blocks, backing_store_cycles, cycle_cost};
 use crate::engine::bit::BitEngine;
-use crate::engine::word::WordEngine;
+use crate::engine::integer::IntegerEngine;
 use crate::engine::{Geometry, PixelEngine, QeeSink};
 use crate::qee::{COEFFICIENT_NAMES, Streams};
 use crate::readback::{ReadbackMessage, pack_messages};
@@ -29,14 +29,14 @@ pub enum Fidelity {
     /// Every micro-cycle on bit-planes: the reference.
     Bit,
     /// Per-pixel integer arithmetic with the same semantics.
-    Word,
+    Integer,
 }
 
 impl Fidelity {
     pub fn name(self) -> &'static str {
         match self {
             Fidelity::Bit => "bit",
-            Fidelity::Word => "word",
+            Fidelity::Integer => "word",
         }
     }
 }
@@ -46,7 +46,7 @@ impl std::str::FromStr for Fidelity {
     fn from_str(s: &str) -> Result<Fidelity, String> {
         match s {
             "bit" => Ok(Fidelity::Bit),
-            "word" => Ok(Fidelity::Word),
+            "word" => Ok(Fidelity::Integer),
             _ => Err(format!("unknown fidelity `{s}` (expected bit or word)")),
         }
     }
@@ -185,20 +185,20 @@ struct Transfer {
 
 enum Engine {
     Bit(BitEngine),
-    Word(WordEngine),
+    Integer(IntegerEngine),
 }
 
 impl Engine {
     fn get(&self) -> &dyn PixelEngine {
         match self {
             Engine::Bit(e) => e,
-            Engine::Word(e) => e,
+            Engine::Integer(e) => e,
         }
     }
     fn get_mut(&mut self) -> &mut dyn PixelEngine {
         match self {
             Engine::Bit(e) => e,
-            Engine::Word(e) => e,
+            Engine::Integer(e) => e,
         }
     }
 }
@@ -228,7 +228,9 @@ impl Board {
         let flags = cfg.flag_registers as usize;
         let engine = match fidelity {
             Fidelity::Bit => Engine::Bit(BitEngine::new(geometry, cfg.pixel_memory_bits, flags)),
-            Fidelity::Word => Engine::Word(WordEngine::new(geometry, cfg.pixel_memory_bits, flags)),
+            Fidelity::Integer => {
+                Engine::Integer(IntegerEngine::new(geometry, cfg.pixel_memory_bits, flags))
+            }
         };
         Board {
             cfg: cfg.clone(),

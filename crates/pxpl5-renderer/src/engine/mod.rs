@@ -3,13 +3,14 @@
 //! [`PixelEngine`] is what a [`Board`](crate::Board) calls once it has validated a command and
 //! charged its cycles: the engines only change pixel state, they never decide time. Both keep the
 //! one-bit registers (enable and flags) the same way, as bit-planes in [`Registers`], because a
-//! one-bit register has no word form to differ in; they differ in pixel memory and arithmetic:
+//! one-bit register has no integer form to differ in; they differ in pixel memory and arithmetic:
 //!
 //! - [`bit::BitEngine`] (`bit`): pixel memory as 208 bit-planes (one u64 holds one bit of a
-//!   group's 64 pixels); every multi-bit operation runs micro-cycle by micro-cycle through serial adders with
-//!   their carries, and QEE results arrive from the tree's streams one bit-plane per cycle.
-//! - [`word::WordEngine`] (`word`): pixel memory as per-pixel integers; the same semantics by
-//!   integer arithmetic.
+//!   group's 64 pixels); every multi-bit operation runs micro-cycle by micro-cycle through serial
+//!   adders with their carries, and QEE results arrive from the tree's streams one bit-plane per
+//!   cycle.
+//! - [`integer::IntegerEngine`] (`integer`): pixel memory as per-pixel integers; the same
+//!   semantics by integer arithmetic.
 //!
 //! Both engines work a *group* at a time: 64 consecutive pixels of one array row (columns 64k to
 //! 64k + 63), numbered row-major ([`Geometry`]); in a bit-plane, one u64 holds one bit of each
@@ -19,7 +20,7 @@
 //! [`Registers::active_groups`].
 
 pub mod bit;
-pub mod word;
+pub mod integer;
 
 use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
 use crate::qee::{Streams, Window};

@@ -1,5 +1,5 @@
-//! The `word` fidelity level: pixel memory as per-pixel integers, operations as integer arithmetic
-//! with exactly the semantics of the bit-serial level (proven equal by property tests).
+//! The `integer` fidelity level: pixel memory as per-pixel integers, operations as integer
+//! arithmetic with exactly the semantics of the bit-serial level (proven equal by property tests).
 //!
 //! Memory is stored as lanes of 64 bits: lane k holds bits 64k .. 64k + 63 of every pixel
 //! (structure of arrays, so a field's loop walks one or two contiguous vectors).
@@ -9,7 +9,7 @@ use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
 use crate::qee::{Streams, Window, mask};
 
 /// Per-pixel integer pixel memory and the shared one-bit registers.
-pub struct WordEngine {
+pub struct IntegerEngine {
     geometry: Geometry,
     lanes: Vec<Vec<u64>>,
     regs: Registers,
@@ -40,10 +40,10 @@ impl Access {
     }
 }
 
-impl WordEngine {
-    pub fn new(geometry: Geometry, memory_bits: u32, flag_count: usize) -> WordEngine {
+impl IntegerEngine {
+    pub fn new(geometry: Geometry, memory_bits: u32, flag_count: usize) -> IntegerEngine {
         let lanes = memory_bits.div_ceil(64) as usize;
-        WordEngine {
+        IntegerEngine {
             geometry,
             lanes: vec![vec![0; geometry.groups * 64]; lanes],
             regs: Registers::new(geometry, flag_count),
@@ -133,7 +133,7 @@ impl WordEngine {
 /// two pieces, and on a monotone piece whose window cannot wrap the pixels with W >= 0 form one
 /// prefix or suffix, found by binary search on exact values. A piece whose window might wrap falls
 /// back to evaluating every pixel. Exact: the property tests compare it with the bit level.
-impl WordEngine {
+impl IntegerEngine {
     fn sign_test(
         &mut self,
         s: &Streams,
@@ -238,7 +238,7 @@ fn sign_row(s: &Streams, window: Window, py: usize, width: usize, out: &mut [u64
     }
 }
 
-impl PixelEngine for WordEngine {
+impl PixelEngine for IntegerEngine {
     fn registers(&self) -> &Registers {
         &self.regs
     }
