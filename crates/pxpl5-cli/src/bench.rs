@@ -20,8 +20,9 @@ use crate::config_cmd;
 /// Options of `pxpl5 bench renderer`.
 #[derive(Args, Clone, Debug)]
 pub struct RendererArgs {
-    /// Fidelity level: bit (every micro-cycle on bit-planes), word (per-pixel integers), or all.
-    #[arg(long, default_value = "all", value_parser = ["bit", "word", "all"])]
+    /// Fidelity level: bit (every micro-cycle on bit-planes), integer (per-pixel integers), or
+    /// all.
+    #[arg(long, default_value = "all", value_parser = crate::run::fidelity_values(true))]
     pub fidelity: String,
     /// Machine config (RON); default: the embedded seed machine.
     #[arg(long)]

@@ -68,8 +68,8 @@ pub struct RadiosityArgs {
     /// Output directory.
     #[arg(long, default_value = "out/radiosity")]
     pub out: PathBuf,
-    /// Renderer fidelity level.
-    #[arg(long, default_value = "word", value_parser = ["bit", "word"])]
+    /// Renderer fidelity level: bit or integer (identical results and cycles).
+    #[arg(long, default_value = "integer", value_parser = crate::run::fidelity_values(false))]
     pub fidelity: String,
     #[command(flatten)]
     pub traces: TraceArgs,

@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::Args;
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use pxpl5_config::MachineConfig;
 use pxpl5_machine::{Frame, Machine, Program, Recorder, RunOptions, RunResult};
 use pxpl5_polygons::{Polygons, scenes};
@@ -18,6 +19,20 @@ use pxpl5_trace::{TraceWindow, parse_time};
 
 use crate::UserError;
 use crate::config_cmd;
+
+/// The values of a `--fidelity` option: `bit`, `integer`, and `all` when `all`. `word`, the
+/// integer level's name until it was renamed, is still accepted as a hidden alias (not in `--help`
+/// or error messages) so that existing scripts keep working; it reads as `integer`.
+pub fn fidelity_values(all: bool) -> impl TypedValueParser<Value = String> {
+    let mut values = vec![
+        PossibleValue::new("bit"),
+        PossibleValue::new("integer").alias("word"),
+    ];
+    if all {
+        values.push(PossibleValue::new("all"));
+    }
+    PossibleValuesParser::new(values).map(|s| if s == "word" { "integer".to_owned() } else { s })
+}
 
 /// Options of `pxpl5 run`.
 #[derive(Args, Clone, Debug)]
@@ -42,8 +57,8 @@ pub struct RunArgs {
     pub out: PathBuf,
     #[command(flatten)]
     pub traces: TraceArgs,
-    /// Renderer fidelity level: bit or word (identical results and cycles).
-    #[arg(long, default_value = "word", value_parser = ["bit", "word"])]
+    /// Renderer fidelity level: bit or integer (identical results and cycles).
+    #[arg(long, default_value = "integer", value_parser = fidelity_values(false))]
     pub fidelity: String,
     /// Stop with an error if the run passes this much simulated time (e.g. 10s, 500ms).
     #[arg(long, default_value = "10s")]

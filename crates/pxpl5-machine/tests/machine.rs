@@ -1000,7 +1000,7 @@ fn mixed_program_gives_the_same_stats_at_bit_and_integer_fidelity() {
     check_mixed_values(&integer);
     let (mut jb, mut ji) = (bit.result.stats.to_json(), integer.result.stats.to_json());
     assert_eq!(jb["fidelity"], "bit");
-    assert_eq!(ji["fidelity"], "word");
+    assert_eq!(ji["fidelity"], "integer");
     jb.as_object_mut().unwrap().remove("fidelity");
     ji.as_object_mut().unwrap().remove("fidelity");
     assert_eq!(jb.to_string(), ji.to_string());

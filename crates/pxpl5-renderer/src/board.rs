@@ -36,7 +36,7 @@ impl Fidelity {
     pub fn name(self) -> &'static str {
         match self {
             Fidelity::Bit => "bit",
-            Fidelity::Integer => "word",
+            Fidelity::Integer => "integer",
         }
     }
 }
@@ -46,8 +46,8 @@ impl std::str::FromStr for Fidelity {
     fn from_str(s: &str) -> Result<Fidelity, String> {
         match s {
             "bit" => Ok(Fidelity::Bit),
-            "word" => Ok(Fidelity::Integer),
-            _ => Err(format!("unknown fidelity `{s}` (expected bit or word)")),
+            "integer" => Ok(Fidelity::Integer),
+            _ => Err(format!("unknown fidelity `{s}` (expected bit or integer)")),
         }
     }
 }
