@@ -2,11 +2,12 @@
 //! interlocks with the backing store, and hands the pixel work to the engine of the chosen
 //! fidelity level.
 //!
-//! Time on a board is a count of Renderer cycles since it was built ([`Board::now`]). A command
-//! starts when the board is free and every backing-store transfer touching its fields has finished
-//! (the wait is a *stall*, counted apart from work), and ends [`cycle_cost`] cycles later. A
-//! backing-store transfer runs in the background on the board's one transfer engine: transfers
-//! queue behind each other, and the foreground goes on.
+//! Time on a board is a count of Renderer cycles since it was built; the board keeps no clock of
+//! its own, only the cycle at which it is next free ([`Board::free_at`]). A command starts when the
+//! board is free and every backing-store transfer touching its fields has finished (the wait is a
+//! *stall*, counted apart from work), and ends [`cycle_cost`] cycles later. A backing-store
+//! transfer runs in the background on the board's one transfer engine: transfers queue behind each
+//! other, and the foreground goes on.
 
 use std::collections::BTreeMap;
 
@@ -212,7 +213,8 @@ pub struct Board {
     max_message_words: u32,
     engine: Engine,
     origin: (u32, u32),
-    now: Cycles,
+    /// The cycle at which the last command ends (or the board stops idling).
+    free_at: Cycles,
     backing_store_free: Cycles,
     in_flight: Vec<Transfer>,
     /// Backing store, allocated a block at a time on first save: block -> block_bits planes.
@@ -239,7 +241,7 @@ impl Board {
             max_message_words: u32::MAX,
             engine,
             origin: (0, 0),
-            now: Cycles::ZERO,
+            free_at: Cycles::ZERO,
             backing_store_free: Cycles::ZERO,
             in_flight: Vec::new(),
             backing_store: BTreeMap::new(),
@@ -254,15 +256,17 @@ impl Board {
         self
     }
 
-    /// The cycle at which the board is free for its next command.
-    pub fn now(&self) -> Cycles {
-        self.now
+    /// The cycle at which the board is free for its next command: when its last command ended,
+    /// or later if it was told to idle. The next command starts there, or later if it
+    /// stalls for the backing store.
+    pub fn free_at(&self) -> Cycles {
+        self.free_at
     }
 
     /// Let the board sit idle until `t` (the machine's scheduler does this when no command is
-    /// waiting); never moves time back.
+    /// waiting): afterwards it is free at the later of `t` and [`Board::free_at`].
     pub fn idle_until(&mut self, t: Cycles) {
-        self.now = self.now.max(t);
+        self.free_at = self.free_at.max(t);
     }
 
     pub fn stats(&self) -> &BoardStats {
@@ -286,15 +290,15 @@ impl Board {
             .map(|t| t.done)
             .max()
             .unwrap_or(Cycles::ZERO);
-        let start = self.now.max(ready);
-        let stall = start - self.now;
+        let start = self.free_at.max(ready);
+        let stall = start - self.free_at;
         let end = start + cost;
         self.in_flight.retain(|t| t.done > start);
 
         let mut readback = None;
         self.apply(cmd, end, &mut readback);
 
-        self.now = end;
+        self.free_at = end;
         self.stats.commands += 1;
         self.stats.busy += cost;
         self.stats.stall += stall;

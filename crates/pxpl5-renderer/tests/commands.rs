@@ -234,7 +234,7 @@ fn backing_store_runs_in_the_background_and_interlocks() {
     }];
     let [mut bit, mut integer] = boards(&setup);
     for b in [&mut bit, &mut integer] {
-        let t0 = b.now().0;
+        let t0 = b.free_at().0;
         let save = b.execute(&Command::Save { field: f, block: 5 }).unwrap();
         // Foreground: overhead + issue.
         assert_eq!(save.end.0 - save.start.0, 21);
@@ -417,7 +417,7 @@ fn program_mistakes_are_errors_not_panics() {
         CommandError::Constant { .. }
     ));
     // Nothing ran: time did not move.
-    assert_eq!(b.now().0, 0);
+    assert_eq!(b.free_at().0, 0);
 }
 
 #[test]

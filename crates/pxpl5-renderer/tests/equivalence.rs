@@ -161,7 +161,7 @@ fn run_both(cfg: &RendererConfig, commands: &[Command]) -> Result<(), TestCaseEr
         let rb = bit.execute(c);
         let ri = integer.execute(c);
         prop_assert_eq!(&rb, &ri, "command {} {:?}: outcomes differ", i, c);
-        prop_assert_eq!(bit.now(), integer.now());
+        prop_assert_eq!(bit.free_at(), integer.free_at());
     }
     prop_assert_eq!(bit.stats(), integer.stats());
     let (ib, ii) = (bit.image(), integer.image());
