@@ -349,7 +349,7 @@ fn item_png(b: &pxpl5_radiosity::shot::ItemBuffer) -> Result<Vec<u8>, UserError>
             }
         }
     }
-    png_bytes(&pxpl5_machine::Frame {
+    png_bytes(&pxpl5_machine::FrameBufferImage {
         width: b.width,
         height: b.rows,
         rgb,
@@ -365,7 +365,7 @@ fn render(
     patches: &[Patch],
     s: &Solution,
     camera: Camera,
-) -> Result<pxpl5_machine::Frame, UserError> {
+) -> Result<pxpl5_machine::FrameBufferImage, UserError> {
     let area: f64 = patches.iter().map(|p| p.area).sum();
     let mut rho = [0.0; 3];
     let mut unshot = [0.0; 3];

@@ -12,7 +12,7 @@ use std::time::Instant;
 use clap::Args;
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use pxpl5_config::MachineConfig;
-use pxpl5_machine::{Frame, Machine, Program, Recorder, RunOptions, RunResult};
+use pxpl5_machine::{FrameBufferImage, Machine, Program, Recorder, RunOptions, RunResult};
 use pxpl5_polygons::{Polygons, scenes};
 use pxpl5_renderer::Fidelity;
 use pxpl5_trace::{TraceWindow, parse_time};
@@ -234,7 +234,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), UserError> {
 }
 
 /// The frame as an 8-bit RGB PNG.
-pub fn png_bytes(frame: &Frame) -> Result<Vec<u8>, UserError> {
+pub fn png_bytes(frame: &FrameBufferImage) -> Result<Vec<u8>, UserError> {
     let mut out = Vec::new();
     {
         let mut enc = png::Encoder::new(&mut out, frame.width, frame.height);

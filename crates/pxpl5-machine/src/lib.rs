@@ -16,7 +16,7 @@ mod run;
 mod stats;
 mod topology;
 
-pub use frame_buffer::Frame;
+pub use frame_buffer::FrameBufferImage;
 pub use gp::{Cost, Gp, GpFuture, Message, Op, Payload, Program, ProgramError, Unit};
 pub use machine::Machine;
 pub use record::Recorder;
