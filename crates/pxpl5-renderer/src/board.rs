@@ -280,7 +280,7 @@ impl Board {
         let cost = cycle_cost(cmd, &self.cfg);
 
         // Backing-store interlock: wait for transfers touching this command's fields (a fence
-        // waits for all of them).
+        // waits for every transfer in flight).
         let ready = self
             .in_flight
             .iter()
