@@ -46,7 +46,7 @@ use crate::window::TraceWindow;
 /// Arguments attached to an event (shown in the viewer's details panel).
 pub type Args = BTreeMap<String, JsonValue>;
 
-/// Words placed in `otherData.time_unit`: a reader must not mistake simulated for host time.
+/// The note placed in `otherData.time_unit`: a reader must not mistake simulated for host time.
 pub const TIME_UNIT_NOTE: &str =
     "1 trace microsecond = 1 simulated microsecond (timestamps are simulated time, not host time)";
 
