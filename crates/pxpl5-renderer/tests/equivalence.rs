@@ -8,7 +8,7 @@ use pxpl5_config::RendererConfig;
 use pxpl5_renderer::{Bit, Board, Cmp, Command, Fidelity, Field, LogicOp, QeeExpr, Rect, Window};
 
 /// Fields that exercise the layouts that matter: signed and unsigned, one bit, a field straddling
-/// the integer level's 64-bit lanes, a 64-bit field, and the last bits of memory.
+/// the integer level's 64-bit limbs, a 64-bit field, and the last bits of memory.
 const FIELDS: [(u32, u32, bool); 8] = [
     (0, 8, true),
     (8, 13, false),

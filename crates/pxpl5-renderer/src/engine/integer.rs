@@ -1,8 +1,9 @@
 //! The `integer` fidelity level: pixel memory as per-pixel integers, operations as integer
 //! arithmetic with exactly the semantics of the bit-serial level (proven equal by property tests).
 //!
-//! Memory is stored as lanes of 64 bits: lane k holds bits 64k .. 64k + 63 of every pixel
-//! (structure of arrays, so a field's loop walks one or two contiguous vectors).
+//! A pixel's memory is one integer of `memory_bits` bits, stored as 64-bit limbs: limb k holds
+//! bits 64k .. 64k + 63 of every pixel (structure of arrays, so a field's loop walks one or two
+//! contiguous vectors).
 
 use super::{Geometry, PixelEngine, QeeSink, Registers, extend, value_of};
 use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
@@ -11,14 +12,14 @@ use crate::qee::{Streams, Window, mask};
 /// Per-pixel integer pixel memory and the shared one-bit registers.
 pub struct IntegerEngine {
     geometry: Geometry,
-    lanes: Vec<Vec<u64>>,
+    limbs: Vec<Vec<u64>>,
     regs: Registers,
 }
 
-/// Where a field's bits sit in the lanes.
+/// Where a field's bits sit in the limbs.
 #[derive(Clone, Copy)]
 struct Access {
-    lane: usize,
+    limb: usize,
     shift: u32,
     bits: u32,
     mask: u64,
@@ -27,7 +28,7 @@ struct Access {
 impl Access {
     fn of(f: Field) -> Access {
         Access {
-            lane: (f.offset / 64) as usize,
+            limb: (f.offset / 64) as usize,
             shift: f.offset % 64,
             bits: f.bits,
             mask: mask(f.bits),
@@ -42,19 +43,19 @@ impl Access {
 
 impl IntegerEngine {
     pub fn new(geometry: Geometry, memory_bits: u32, flag_count: usize) -> IntegerEngine {
-        let lanes = memory_bits.div_ceil(64) as usize;
+        let limbs = memory_bits.div_ceil(64) as usize;
         IntegerEngine {
             geometry,
-            lanes: vec![vec![0; geometry.groups * 64]; lanes],
+            limbs: vec![vec![0; geometry.groups * 64]; limbs],
             regs: Registers::new(geometry, flag_count),
         }
     }
 
     #[inline]
     fn get(&self, a: Access, p: usize) -> u64 {
-        let lo = self.lanes[a.lane][p] >> a.shift;
+        let lo = self.limbs[a.limb][p] >> a.shift;
         if a.straddles() {
-            (lo | (self.lanes[a.lane + 1][p] << (64 - a.shift))) & a.mask
+            (lo | (self.limbs[a.limb + 1][p] << (64 - a.shift))) & a.mask
         } else {
             lo & a.mask
         }
@@ -63,13 +64,13 @@ impl IntegerEngine {
     #[inline]
     fn set(&mut self, a: Access, p: usize, v: u64) {
         let v = v & a.mask;
-        let lane = &mut self.lanes[a.lane][p];
-        *lane = (*lane & !(a.mask << a.shift)) | (v << a.shift);
+        let limb = &mut self.limbs[a.limb][p];
+        *limb = (*limb & !(a.mask << a.shift)) | (v << a.shift);
         if a.straddles() {
             let hi_bits = a.shift + a.bits - 64;
             let hi_mask = mask(hi_bits);
-            let lane = &mut self.lanes[a.lane + 1][p];
-            *lane = (*lane & !hi_mask) | (v >> (64 - a.shift));
+            let limb = &mut self.limbs[a.limb + 1][p];
+            *limb = (*limb & !hi_mask) | (v >> (64 - a.shift));
         }
     }
 
