@@ -34,7 +34,7 @@ fn golden(config_file: &str) -> String {
         };
         let stream = cornell_stream(&cfg, &opts, 1).expect("the stream fits every config");
         let mut first: Option<(u64, String)> = None;
-        for fidelity in [Fidelity::Bit, Fidelity::Word] {
+        for fidelity in [Fidelity::Bit, Fidelity::Integer] {
             let mut board = Board::new(&cfg.renderer, cfg.ring.word_bits, fidelity);
             let cycles = stream.run(&mut board).expect("the stream runs").0;
             let digest = board.image().digest();
@@ -304,8 +304,8 @@ fn radiosity_is_deterministic_across_runs_and_fidelity_levels() {
         let b = program.solution.borrow().radiosity.clone();
         (json.to_string(), trace, b)
     };
-    let a = run(pxpl5_renderer::Fidelity::Word);
-    let b = run(pxpl5_renderer::Fidelity::Word);
+    let a = run(pxpl5_renderer::Fidelity::Integer);
+    let b = run(pxpl5_renderer::Fidelity::Integer);
     let c = run(pxpl5_renderer::Fidelity::Bit);
     assert!(a == b, "two identical runs differ");
     assert!(a.0 == c.0 && a.2 == c.2, "bit and word levels differ");

@@ -8,7 +8,9 @@
 //!   crate of `crates/` and `programs/` may depend only on the project crates its row lists, and
 //!   every such crate has a row;
 //! - only the crates ARCHITECTURE.md names may depend on a file-format crate (`serde`,
-//!   `serde_json`, `ron`, `toml`): each has a row in its `tidy:format-crates` table;
+//!   `serde_json`, `ron`, `toml`): each has a row in its `tidy:format-crates` table. Only
+//!   `[dependencies]` count (a test may parse output with a dev-dependency), and a test checks
+//!   that a violation fails;
 //! - every crate's manifest takes the workspace's lints (`[lints] workspace = true`);
 //! - `crates/pxpl5-sim/src` names no unit of Pixel-Planes 5 (GP, Renderer, ring, QEE, IGC, frame
 //!   buffer), in code, comments or docs alike.
@@ -239,10 +241,12 @@ fn crate_dependencies_follow_architecture_md() {
     assert!(problems.is_empty(), "{}", problems.join("\n"));
 }
 
-#[test]
-fn only_the_crates_architecture_md_names_use_a_file_format_crate() {
-    let rules = architecture_table("format-crates");
-    let crates = crates();
+/// What breaks the format-crates rule: `rules` (format crate -> crates allowed to depend on it)
+/// against `crates` (crate -> its normal dependencies), one line per problem.
+fn format_crate_problems(
+    rules: &BTreeMap<String, BTreeSet<String>>,
+    crates: &BTreeMap<String, BTreeSet<String>>,
+) -> Vec<String> {
     let mut problems = Vec::new();
     for format_crate in FORMAT_CRATES {
         if !rules.contains_key(format_crate) {
@@ -252,13 +256,13 @@ fn only_the_crates_architecture_md_names_use_a_file_format_crate() {
         }
     }
     // Every row is enforced, including format crates added to the table later.
-    for (format_crate, allowed) in &rules {
+    for (format_crate, allowed) in rules {
         for name in allowed.iter().filter(|n| !crates.contains_key(*n)) {
             problems.push(format!(
                 "ARCHITECTURE.md allows {format_crate} in {name}, which is no crate"
             ));
         }
-        for (name, deps) in &crates {
+        for (name, deps) in crates {
             if deps.contains(format_crate) && !allowed.contains(name) {
                 problems.push(format!(
                     "{name} depends on {format_crate}, which ARCHITECTURE.md does not allow"
@@ -266,7 +270,48 @@ fn only_the_crates_architecture_md_names_use_a_file_format_crate() {
             }
         }
     }
+    problems
+}
+
+#[test]
+fn only_the_crates_architecture_md_names_use_a_file_format_crate() {
+    let problems = format_crate_problems(&architecture_table("format-crates"), &crates());
     assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+/// The rule reads `[dependencies]` only, and fails when broken: `pxpl5-trace` has `serde_json` as
+/// a dev-dependency (its tests parse traces), which the rule ignores; as a dependency it is
+/// refused ("no serde or serde_json below pxpl5-machine").
+#[test]
+fn the_format_crate_rule_ignores_dev_dependencies_and_catches_a_violation() {
+    let manifest = parse_manifest(&workspace_root().join("crates/pxpl5-trace/Cargo.toml"));
+    assert!(
+        manifest["dev-dependencies"].get("serde_json").is_some(),
+        "pxpl5-trace's tests no longer use serde_json: pick another dev-dependency to check"
+    );
+    let rules = architecture_table("format-crates");
+    let mut crates = crates();
+    assert!(
+        !crates["pxpl5-trace"].contains("serde_json"),
+        "dev-dependencies counted"
+    );
+    assert!(format_crate_problems(&rules, &crates).is_empty());
+    crates
+        .get_mut("pxpl5-trace")
+        .expect("pxpl5-trace is a crate")
+        .insert("serde_json".to_string());
+    assert_eq!(
+        format_crate_problems(&rules, &crates),
+        ["pxpl5-trace depends on serde_json, which ARCHITECTURE.md does not allow"]
+    );
+    for core in ["pxpl5-sim", "pxpl5-renderer", "pxpl5-ring", "pxpl5-trace"] {
+        for format_crate in ["serde", "serde_json"] {
+            assert!(
+                !rules[format_crate].contains(core),
+                "ARCHITECTURE.md allows {format_crate} in {core}, below pxpl5-machine"
+            );
+        }
+    }
 }
 
 #[test]

@@ -14,14 +14,16 @@ use pxpl5_renderer::Fidelity;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum FidelityArg {
     Bit,
-    Word,
+    // `word`, the level's name until it was renamed, stays a hidden alias for existing scripts.
+    #[value(alias = "word")]
+    Integer,
 }
 
 impl From<FidelityArg> for Fidelity {
     fn from(f: FidelityArg) -> Fidelity {
         match f {
             FidelityArg::Bit => Fidelity::Bit,
-            FidelityArg::Word => Fidelity::Word,
+            FidelityArg::Integer => Fidelity::Integer,
         }
     }
 }
@@ -30,7 +32,8 @@ impl From<FidelityArg> for Fidelity {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum BenchFidelity {
     Bit,
-    Word,
+    #[value(alias = "word")]
+    Integer,
     All,
 }
 
@@ -39,8 +42,8 @@ impl BenchFidelity {
     pub fn levels(self) -> Vec<Fidelity> {
         match self {
             BenchFidelity::Bit => vec![Fidelity::Bit],
-            BenchFidelity::Word => vec![Fidelity::Word],
-            BenchFidelity::All => vec![Fidelity::Bit, Fidelity::Word],
+            BenchFidelity::Integer => vec![Fidelity::Integer],
+            BenchFidelity::All => vec![Fidelity::Bit, Fidelity::Integer],
         }
     }
 }

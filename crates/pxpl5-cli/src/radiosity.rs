@@ -70,7 +70,7 @@ pub struct RadiosityArgs {
     #[arg(long, default_value = "out/radiosity")]
     pub out: PathBuf,
     /// Renderer fidelity level.
-    #[arg(long, value_enum, default_value_t = FidelityArg::Word)]
+    #[arg(long, value_enum, default_value_t = FidelityArg::Integer)]
     pub fidelity: FidelityArg,
     #[command(flatten)]
     pub traces: TraceArgs,

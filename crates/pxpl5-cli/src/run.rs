@@ -11,7 +11,9 @@ use std::time::Instant;
 
 use clap::Args;
 use pxpl5_config::MachineConfig;
-use pxpl5_machine::{Frame, Machine, Program, Recorder, RunError, RunOptions, RunResult};
+use pxpl5_machine::{
+    FrameBufferImage, Machine, Program, Recorder, RunError, RunOptions, RunResult,
+};
 use pxpl5_polygons::{Polygons, scenes};
 use pxpl5_renderer::Fidelity;
 use pxpl5_sim::Tick;
@@ -44,8 +46,8 @@ pub struct RunArgs {
     pub out: PathBuf,
     #[command(flatten)]
     pub traces: TraceArgs,
-    /// Renderer fidelity level: bit or word (identical results and cycles).
-    #[arg(long, value_enum, default_value_t = FidelityArg::Word)]
+    /// Renderer fidelity level: bit or integer (identical results and cycles).
+    #[arg(long, value_enum, default_value_t = FidelityArg::Integer)]
     pub fidelity: FidelityArg,
     /// Stop with an error if the run passes this much simulated time (e.g. 10s, 500ms).
     #[arg(long, default_value = "10s")]
@@ -231,7 +233,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), UserError> {
 }
 
 /// The frame as an 8-bit RGB PNG.
-pub fn png_bytes(frame: &Frame) -> Result<Vec<u8>, UserError> {
+pub fn png_bytes(frame: &FrameBufferImage) -> Result<Vec<u8>, UserError> {
     let mut out = Vec::new();
     {
         let mut enc = png::Encoder::new(&mut out, frame.width, frame.height);

@@ -202,6 +202,46 @@ fn run_writes_outputs_and_is_deterministic() {
 }
 
 #[test]
+fn fidelity_word_is_a_hidden_alias_of_integer() {
+    let run = |fidelity: &str, d: &std::path::Path| {
+        let out = pxpl5(&[
+            "run",
+            "--config",
+            "machine-configs/minimal.ron",
+            "--scene",
+            "programs/polygons/scenes/small.ron",
+            "--fidelity",
+            fidelity,
+            "--out",
+            d.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        std::fs::read_to_string(d.join("stats.json")).unwrap()
+    };
+    let (old, new) = (out_dir("fidelity-word"), out_dir("fidelity-integer"));
+    let stats = run("word", &old);
+    assert_eq!(stats, run("integer", &new), "word must run as integer");
+    let json: serde_json::Value = serde_json::from_str(&stats).unwrap();
+    assert_eq!(json["fidelity"], "integer");
+    // Hidden: neither the help nor the list of values in an error names the old value.
+    for command in ["run", "radiosity"] {
+        let help = text(&pxpl5(&[command, "--help"]).stdout);
+        // The option's entry: its line and, in the long help, the next.
+        let entry = help.split("--fidelity <FIDELITY>").nth(1).unwrap();
+        let entry = entry.split("\n      --").next().unwrap();
+        assert!(entry.contains("[possible values: bit, integer]"), "{entry}");
+        assert!(!entry.contains("word"), "{entry}");
+        let out = pxpl5(&[command, "--fidelity", "words"]);
+        assert_eq!(out.status.code(), Some(2));
+        let err = text(&out.stderr);
+        assert!(
+            err.contains("bit, integer") && !err.contains("word,"),
+            "{err}"
+        );
+    }
+}
+
+#[test]
 fn run_rejects_bad_input_without_writing() {
     let good = std::fs::read_to_string(root().join("programs/polygons/scenes/small.ron")).unwrap();
     let nan = temp_file(

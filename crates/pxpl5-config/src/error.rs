@@ -98,7 +98,7 @@ pub struct SyntaxError {
     pub file: String,
     /// ron's 1-based line.
     pub line: usize,
-    /// ron's 1-based column in characters, moved past any blanks to the offending token.
+    /// ron's 1-based column in characters, moved past any blanks to the offending text.
     pub col: usize,
     /// ron's description of what was found and what was expected.
     pub message: String,
@@ -108,7 +108,7 @@ pub struct SyntaxError {
     pub excerpt: String,
     #[source_code]
     pub src: NamedSource<String>,
-    /// The offending token's bytes in the source.
+    /// The offending text's bytes in the source.
     #[label("{label}")]
     pub span: SourceSpan,
     /// Short text of the label at `span`.
@@ -177,8 +177,8 @@ impl ConfigError {
         let start = e.span.start;
         let line = start.line.max(1);
         let raw_start = byte_offset(text, line, start.col.max(1));
-        // ron often stops on the blank before the offending token (`count: "four"` is reported at
-        // the space after the colon); move onto the token, within the line, so the column and the
+        // ron often stops on the blank before the offending text (`count: "four"` is reported at
+        // the space after the colon); move onto the text, within the line, so the column and the
         // caret point at what is wrong.
         let skipped = text[raw_start..]
             .find(|c: char| c != ' ' && c != '\t')
@@ -190,7 +190,7 @@ impl ConfigError {
         let len = if end_byte > start_byte {
             end_byte - start_byte
         } else {
-            token_len(&text[start_byte..])
+            offending_len(&text[start_byte..])
         };
         let line_text = line_text(text, line).to_string();
         ConfigError::Syntax(Box::new(SyntaxError {
@@ -244,16 +244,17 @@ fn byte_offset(text: &str, line: usize, col: usize) -> usize {
     line_start + within
 }
 
-/// Length in bytes of the token starting `rest`, so a point error still underlines a word: an
-/// identifier or number, else one character, else nothing at the end of a line or of the text.
-fn token_len(rest: &str) -> usize {
-    let word: usize = rest
+/// Length in bytes of the offending text starting `rest`, so that a point error still underlines
+/// something: an identifier or number, else one character, else nothing at the end of a line or of
+/// the text.
+fn offending_len(rest: &str) -> usize {
+    let ident: usize = rest
         .chars()
         .take_while(|c| c.is_alphanumeric() || *c == '_')
         .map(char::len_utf8)
         .sum();
-    if word > 0 {
-        return word;
+    if ident > 0 {
+        return ident;
     }
     match rest.chars().next() {
         Some('\n' | '\r') | None => 0,

@@ -135,7 +135,8 @@ pub enum NodeOrder {
 pub struct RendererConfig {
     /// Number of Renderer boards. [paper]: up to 16.
     pub count: u32,
-    /// Pixel processors per row. [paper]: 128. Must be a multiple of 64 (one bit-plane word).
+    /// Pixel processors per row. [paper]: 128. Must be a multiple of 64: the simulator works on
+    /// whole 64-pixel groups.
     #[serde(default = "defaults::renderer_side")]
     pub width: u32,
     /// Pixel processor rows. [paper]: 128.

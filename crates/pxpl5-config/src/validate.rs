@@ -65,7 +65,7 @@ pub fn validate(cfg: &MachineConfig) -> Result<(), Vec<SemanticError>> {
         c.fail(
             "renderer.width",
             r.width.to_string(),
-            "must be a positive multiple of 64 (one 64-bit word per bit-plane row)",
+            "must be a positive multiple of 64 (the simulator works on whole 64-pixel groups)",
         );
     }
     c.at_least("renderer.height", r.height.into(), 1);

@@ -344,7 +344,7 @@ fn check_error(text: &str, render_it: bool) {
 
 #[test]
 fn garbage_never_panics() {
-    const TOKENS: &[&str] = &[
+    const PIECES: &[&str] = &[
         "(",
         ")",
         "(",
@@ -405,7 +405,7 @@ fn garbage_never_panics() {
     let mut next = move || rng.below(1 << 31) as usize;
     for i in 0..600 {
         let len = next() % 40;
-        let text: String = (0..len).map(|_| TOKENS[next() % TOKENS.len()]).collect();
+        let text: String = (0..len).map(|_| PIECES[next() % PIECES.len()]).collect();
         check_error(&text, i % 10 == 0);
     }
     // Garbage after a valid prefix reaches the deeper parts of the parser.
@@ -416,7 +416,7 @@ fn garbage_never_panics() {
             .find(|&c| EMBEDDED_TEXT.is_char_boundary(c))
             .unwrap_or(0);
         let tail: String = (0..next() % 8)
-            .map(|_| TOKENS[next() % TOKENS.len()])
+            .map(|_| PIECES[next() % PIECES.len()])
             .collect();
         check_error(&format!("{}{tail}", &EMBEDDED_TEXT[..cut]), i % 10 == 0);
     }

@@ -1,13 +1,14 @@
 //! The frame buffer node: takes the Renderers' `Pixels` messages and keeps the picture (8-bit RGB).
 //!
 //! The model gives it no timing of its own: a message costs nothing beyond the ring's delivery,
-//! whose input-queue space it frees on arrival. What it holds is the run's [`Frame`].
+//! whose input-queue space it frees on arrival. What it holds is the run's [`FrameBufferImage`].
 
 use pxpl5_renderer::{Rect, readback};
 
-/// The frame buffer's memory: 8-bit RGB.
+/// The frame buffer's image: its whole memory, 8-bit RGB, as a run leaves it (an image as in
+/// `pxpl5_renderer::BoardImage`: a unit's complete state).
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Frame {
+pub struct FrameBufferImage {
     pub width: u32,
     pub height: u32,
     /// Row-major RGB bytes.
@@ -16,10 +17,10 @@ pub struct Frame {
     pub writes: u64,
 }
 
-impl Frame {
-    /// A black frame.
-    pub(crate) fn new(width: u32, height: u32) -> Frame {
-        Frame {
+impl FrameBufferImage {
+    /// A black image.
+    pub(crate) fn new(width: u32, height: u32) -> FrameBufferImage {
+        FrameBufferImage {
             width,
             height,
             rgb: vec![0; width as usize * height as usize * 3],

@@ -16,7 +16,7 @@ mod run;
 mod stats;
 mod topology;
 
-pub use frame_buffer::Frame;
+pub use frame_buffer::FrameBufferImage;
 pub use gp::{
     CommandBatch, Cost, DATA_HEADER_WORDS, Gp, GpFuture, Message, Op, Payload, Program,
     ProgramError, Record, Tag, Unit,

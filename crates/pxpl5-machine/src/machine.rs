@@ -27,7 +27,7 @@ use pxpl5_ring::{MessageId, NodeId, Ring, RingError};
 use pxpl5_sim::{ClockDomain, ComponentId, EventQueue, Priority, Tick};
 
 use crate::delivery::{Arrival, Delivery, Outgoing, Route};
-use crate::frame_buffer::Frame;
+use crate::frame_buffer::FrameBufferImage;
 use crate::gp::{Gp, Payload, Program, Shared, Unit};
 use crate::gp_node::{GpNode, GpState, GpStep};
 use crate::record::Recorder;
@@ -73,7 +73,7 @@ pub struct Machine {
     ring: Ring,
     gps: Vec<GpNode>,
     renderers: Vec<RendererNode>,
-    frame: Frame,
+    frame: FrameBufferImage,
     events: EventQueue<Event>,
     delivery: Delivery,
     now: Tick,
@@ -140,7 +140,7 @@ impl Machine {
             ring,
             gps,
             renderers,
-            frame: Frame::new(fb.0, fb.1),
+            frame: FrameBufferImage::new(fb.0, fb.1),
             events: EventQueue::new(),
             delivery: Delivery::default(),
             now: Tick::ZERO,

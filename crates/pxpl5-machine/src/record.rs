@@ -13,8 +13,7 @@ use std::collections::BTreeMap;
 
 use pxpl5_ring::{MessageId, NodeId, Ring, TokenLocation};
 use pxpl5_sim::Tick;
-use pxpl5_trace::{ChromeTrace, SignalId, TraceWindow, TrackId, VcdTrace};
-use serde_json::json;
+use pxpl5_trace::{Args, ChromeTrace, JsonValue, SignalId, TraceWindow, TrackId, VcdTrace};
 
 use crate::gp::Unit;
 use crate::stats::PhaseSpan;
@@ -122,7 +121,7 @@ impl Recorder {
                 .collect();
             c.metadata(
                 "ring_order",
-                json!(units.iter().map(|u| u.to_string()).collect::<Vec<_>>()),
+                units.iter().map(|u| u.to_string()).collect::<Vec<_>>(),
             );
             self.tracks = Some(Tracks {
                 gp: gp_tracks,
@@ -217,7 +216,10 @@ impl Recorder {
             &format!("{from} -> {to}"),
             sent,
             delivered,
-            [("id", json!(id.0)), ("words", json!(words))],
+            [
+                ("id", JsonValue::from(id.0)),
+                ("words", JsonValue::from(words)),
+            ],
         );
     }
 
@@ -308,10 +310,10 @@ impl Recorder {
                     &p.name,
                     p.start,
                     p.end,
-                    serde_json::Map::new(),
+                    Args::new(),
                 );
             }
-            c.metadata("simulated_end_ps", json!(end.0));
+            c.metadata("simulated_end_ps", end.0);
         }
         if let Some(v) = &mut self.vcd {
             v.set_end(end);

@@ -4,7 +4,7 @@ use pxpl5_renderer::Fidelity;
 use pxpl5_ring::RingError;
 use pxpl5_sim::Tick;
 
-use crate::frame_buffer::Frame;
+use crate::frame_buffer::FrameBufferImage;
 use crate::gp::Unit;
 use crate::record::Recorder;
 use crate::stats::RunStats;
@@ -20,7 +20,7 @@ pub struct RunOptions {
 impl Default for RunOptions {
     fn default() -> RunOptions {
         RunOptions {
-            fidelity: Fidelity::Word,
+            fidelity: Fidelity::Integer,
             // 10 simulated seconds: far beyond any shipped program's run.
             max_time: Tick(10_000_000_000_000),
         }
@@ -51,9 +51,10 @@ pub enum RunError {
     Config(String),
 }
 
-/// The result of a run: simulated statistics, the frame, and the trace recorder.
+/// The result of a run: simulated statistics, the frame buffer's image, and the trace recorder.
 pub struct RunResult {
     pub stats: RunStats,
-    pub frame: Frame,
+    /// The frame buffer's image at the end of the run.
+    pub frame: FrameBufferImage,
     pub recorder: Recorder,
 }

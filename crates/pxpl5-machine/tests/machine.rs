@@ -75,7 +75,7 @@ fn run(cfg: &MachineConfig, p: &dyn Program) -> Result<RunResult, RunError> {
     run_with(
         cfg,
         p,
-        Fidelity::Word,
+        Fidelity::Integer,
         RunOptions::default().max_time,
         Recorder::new(None, None),
     )
@@ -570,7 +570,7 @@ fn computing_forever_hits_the_time_limit() {
     let r = run_with(
         &minimal(),
         &p,
-        Fidelity::Word,
+        Fidelity::Integer,
         one_ms,
         Recorder::new(None, None),
     );
@@ -596,7 +596,7 @@ fn computing_forever_hits_the_time_limit() {
     let r = run_with(
         &minimal(),
         &p,
-        Fidelity::Word,
+        Fidelity::Integer,
         one_ms,
         Recorder::new(None, None),
     );
@@ -898,8 +898,8 @@ fn check_slices_nest(events: &[Value]) {
 
 #[test]
 fn mixed_program_is_deterministic_with_traces_and_traces_are_well_formed() {
-    let a = run_mixed(Fidelity::Word, Some("0.."), Some("0.."));
-    let b = run_mixed(Fidelity::Word, Some("0.."), Some("0.."));
+    let a = run_mixed(Fidelity::Integer, Some("0.."), Some("0.."));
+    let b = run_mixed(Fidelity::Integer, Some("0.."), Some("0.."));
     check_mixed_values(&a);
     assert_eq!(
         a.result.stats.to_json().to_string(),
@@ -911,7 +911,7 @@ fn mixed_program_is_deterministic_with_traces_and_traces_are_well_formed() {
     let (va, vb) = (vcd_bytes(&a.result), vcd_bytes(&b.result));
     assert_eq!(va, vb);
     // Recording changes nothing simulated.
-    let quiet = run_mixed(Fidelity::Word, None, None);
+    let quiet = run_mixed(Fidelity::Integer, None, None);
     assert_eq!(
         a.result.stats.to_json().to_string(),
         quiet.result.stats.to_json().to_string()
@@ -956,7 +956,7 @@ fn mixed_program_is_deterministic_with_traces_and_traces_are_well_formed() {
     assert_eq!(phases, ["setup", "render", "reply", "work", "tail"]);
 
     // A window keeps only what starts in it: a smaller trace whose events lie before 10 us.
-    let w = run_mixed(Fidelity::Word, Some("0..10us"), Some("0..10us"));
+    let w = run_mixed(Fidelity::Integer, Some("0..10us"), Some("0..10us"));
     assert_eq!(
         w.result.stats.to_json().to_string(),
         a.result.stats.to_json().to_string()
@@ -993,19 +993,19 @@ fn mixed_program_is_deterministic_with_traces_and_traces_are_well_formed() {
 }
 
 #[test]
-fn mixed_program_gives_the_same_stats_at_bit_and_word_fidelity() {
+fn mixed_program_gives_the_same_stats_at_bit_and_integer_fidelity() {
     let bit = run_mixed(Fidelity::Bit, None, None);
-    let word = run_mixed(Fidelity::Word, None, None);
+    let integer = run_mixed(Fidelity::Integer, None, None);
     check_mixed_values(&bit);
-    check_mixed_values(&word);
-    let (mut jb, mut jw) = (bit.result.stats.to_json(), word.result.stats.to_json());
+    check_mixed_values(&integer);
+    let (mut jb, mut ji) = (bit.result.stats.to_json(), integer.result.stats.to_json());
     assert_eq!(jb["fidelity"], "bit");
-    assert_eq!(jw["fidelity"], "word");
+    assert_eq!(ji["fidelity"], "integer");
     jb.as_object_mut().unwrap().remove("fidelity");
-    jw.as_object_mut().unwrap().remove("fidelity");
-    assert_eq!(jb.to_string(), jw.to_string());
-    assert_eq!(bit.log, word.log);
-    assert_eq!(bit.result.frame, word.result.frame);
+    ji.as_object_mut().unwrap().remove("fidelity");
+    assert_eq!(jb.to_string(), ji.to_string());
+    assert_eq!(bit.log, integer.log);
+    assert_eq!(bit.result.frame, integer.result.frame);
 }
 
 // ---------------------------------------------------------------------------------------------

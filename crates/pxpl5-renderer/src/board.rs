@@ -2,11 +2,12 @@
 //! interlocks with the backing store, and hands the pixel work to the engine of the chosen
 //! fidelity level.
 //!
-//! Time on a board is a count of Renderer cycles since it was built ([`Board::now`]). A command
-//! starts when the board is free and every backing-store transfer touching its fields has finished
-//! (the wait is a *stall*, counted apart from work), and ends [`cycle_cost`] cycles later. A
-//! backing-store transfer runs in the background on the board's one transfer engine: transfers
-//! queue behind each other, and the foreground goes on.
+//! Time on a board is a count of Renderer cycles since it was built; the board keeps no clock of
+//! its own, only the cycle at which it is next free ([`Board::free_at`]). A command starts when the
+//! board is free and every backing-store transfer touching its fields has finished (the wait is a
+//! *stall*, counted apart from work), and ends [`cycle_cost`] cycles later. A backing-store
+//! transfer runs in the background on the board's one transfer engine: transfers queue behind each
+//! other, and the foreground goes on.
 
 use std::collections::BTreeMap;
 
@@ -18,7 +19,7 @@ use thiserror::Error;
 use crate::command::{Bit, Command, Field, Rect};
 use crate::cycles::{backing_store_blocks, backing_store_cycles, cycle_cost};
 use crate::engine::bit::BitEngine;
-use crate::engine::word::WordEngine;
+use crate::engine::integer::IntegerEngine;
 use crate::engine::{Geometry, PixelEngine, QeeSink};
 use crate::qee::{COEFFICIENT_NAMES, Streams};
 use crate::readback::{ReadbackMessage, pack_messages};
@@ -29,14 +30,14 @@ pub enum Fidelity {
     /// Every micro-cycle on bit-planes: the reference.
     Bit,
     /// Per-pixel integer arithmetic with the same semantics.
-    Word,
+    Integer,
 }
 
 impl Fidelity {
     pub fn name(self) -> &'static str {
         match self {
             Fidelity::Bit => "bit",
-            Fidelity::Word => "word",
+            Fidelity::Integer => "integer",
         }
     }
 }
@@ -46,8 +47,8 @@ impl std::str::FromStr for Fidelity {
     fn from_str(s: &str) -> Result<Fidelity, String> {
         match s {
             "bit" => Ok(Fidelity::Bit),
-            "word" => Ok(Fidelity::Word),
-            _ => Err(format!("unknown fidelity `{s}` (expected bit or word)")),
+            "integer" => Ok(Fidelity::Integer),
+            _ => Err(format!("unknown fidelity `{s}` (expected bit or integer)")),
         }
     }
 }
@@ -185,20 +186,20 @@ struct Transfer {
 
 enum Engine {
     Bit(BitEngine),
-    Word(WordEngine),
+    Integer(IntegerEngine),
 }
 
 impl Engine {
     fn get(&self) -> &dyn PixelEngine {
         match self {
             Engine::Bit(e) => e,
-            Engine::Word(e) => e,
+            Engine::Integer(e) => e,
         }
     }
     fn get_mut(&mut self) -> &mut dyn PixelEngine {
         match self {
             Engine::Bit(e) => e,
-            Engine::Word(e) => e,
+            Engine::Integer(e) => e,
         }
     }
 }
@@ -207,12 +208,13 @@ impl Engine {
 pub struct Board {
     cfg: RendererConfig,
     geometry: Geometry,
-    word_bits: u32,
+    ring_word_bits: u32,
     /// Most ring words per readback message (see [`Board::stream_readbacks`]).
     max_message_words: u32,
     engine: Engine,
     origin: (u32, u32),
-    now: Cycles,
+    /// The cycle at which the last command ends (or the board stops idling).
+    free_at: Cycles,
     backing_store_free: Cycles,
     in_flight: Vec<Transfer>,
     /// Backing store, allocated a block at a time on first save: block -> block_bits planes.
@@ -228,16 +230,18 @@ impl Board {
         let flags = cfg.flag_registers as usize;
         let engine = match fidelity {
             Fidelity::Bit => Engine::Bit(BitEngine::new(geometry, cfg.pixel_memory_bits, flags)),
-            Fidelity::Word => Engine::Word(WordEngine::new(geometry, cfg.pixel_memory_bits, flags)),
+            Fidelity::Integer => {
+                Engine::Integer(IntegerEngine::new(geometry, cfg.pixel_memory_bits, flags))
+            }
         };
         Board {
             cfg: cfg.clone(),
             geometry,
-            word_bits: ring_word_bits,
+            ring_word_bits,
             max_message_words: u32::MAX,
             engine,
             origin: (0, 0),
-            now: Cycles::ZERO,
+            free_at: Cycles::ZERO,
             backing_store_free: Cycles::ZERO,
             in_flight: Vec::new(),
             backing_store: BTreeMap::new(),
@@ -252,15 +256,17 @@ impl Board {
         self
     }
 
-    /// The cycle at which the board is free for its next command.
-    pub fn now(&self) -> Cycles {
-        self.now
+    /// The cycle at which the board is free for its next command: when its last command ended,
+    /// or later if it was told to idle. The next command starts there, or later if it
+    /// stalls for the backing store.
+    pub fn free_at(&self) -> Cycles {
+        self.free_at
     }
 
     /// Let the board sit idle until `t` (the machine's scheduler does this when no command is
-    /// waiting); never moves time back.
+    /// waiting): afterwards it is free at the later of `t` and [`Board::free_at`].
     pub fn idle_until(&mut self, t: Cycles) {
-        self.now = self.now.max(t);
+        self.free_at = self.free_at.max(t);
     }
 
     pub fn stats(&self) -> &BoardStats {
@@ -274,7 +280,7 @@ impl Board {
         let cost = cycle_cost(cmd, &self.cfg);
 
         // Backing-store interlock: wait for transfers touching this command's fields (a fence
-        // waits for all of them).
+        // waits for every transfer in flight).
         let ready = self
             .in_flight
             .iter()
@@ -284,15 +290,15 @@ impl Board {
             .map(|t| t.done)
             .max()
             .unwrap_or(Cycles::ZERO);
-        let start = self.now.max(ready);
-        let stall = start - self.now;
+        let start = self.free_at.max(ready);
+        let stall = start - self.free_at;
         let end = start + cost;
         self.in_flight.retain(|t| t.done > start);
 
         let mut readback = None;
         self.apply(cmd, end, &mut readback);
 
-        self.now = end;
+        self.free_at = end;
         self.stats.commands += 1;
         self.stats.busy += cost;
         self.stats.stall += stall;
@@ -309,7 +315,7 @@ impl Board {
 
     /// The pixel (or board-state) effect of a validated command that ends at cycle `end`.
     fn apply(&mut self, cmd: &Command, end: Cycles, readback: &mut Option<ReadbackStream>) {
-        let gated = self.engine.get().registers().active_words(None);
+        let gated = self.engine.get().registers().active_groups(None);
         // The QEE's streams for this board's origin and size.
         let (origin, g) = (self.origin, self.geometry);
         let streams = |expr: &crate::QeeExpr| Streams::new(expr, origin, g.width, g.height);
@@ -328,7 +334,7 @@ impl Board {
                     .engine
                     .get()
                     .registers()
-                    .active_words(enable_write(dst, combine));
+                    .active_groups(enable_write(dst, combine));
                 let s = streams(expr);
                 self.engine
                     .get_mut()
@@ -356,7 +362,7 @@ impl Board {
                     .engine
                     .get()
                     .registers()
-                    .active_words(enable_write(dst, combine));
+                    .active_groups(enable_write(dst, combine));
                 let s = streams(expr);
                 let sink = QeeSink::Compare {
                     field,
@@ -393,7 +399,7 @@ impl Board {
                     .engine
                     .get()
                     .registers()
-                    .active_words(enable_write(dst, combine));
+                    .active_groups(enable_write(dst, combine));
                 self.engine
                     .get_mut()
                     .compare(a, b, cmp, dst, combine, &active);
@@ -408,22 +414,22 @@ impl Board {
                 // The data are copied at issue: the interlock keeps every later access to the
                 // field behind the transfer's end, so no command can see the difference.
                 let planes = self.engine.get().read_planes(field);
-                let words = self.geometry.words;
+                let groups = self.geometry.groups;
                 let block_bits = self.cfg.backing_store.block_bits as usize;
-                for (i, chunk) in planes.chunks(block_bits * words).enumerate() {
+                for (i, chunk) in planes.chunks(block_bits * groups).enumerate() {
                     let stored = self
                         .backing_store
                         .entry(block + i as u32)
-                        .or_insert_with(|| vec![0; block_bits * words]);
+                        .or_insert_with(|| vec![0; block_bits * groups]);
                     stored[..chunk.len()].copy_from_slice(chunk);
                 }
                 self.start_transfer(field, end);
             }
             Command::Load { field, block } => {
-                let words = self.geometry.words;
+                let groups = self.geometry.groups;
                 let block_bits = self.cfg.backing_store.block_bits as usize;
-                let mut planes = vec![0u64; field.bits as usize * words];
-                for (i, chunk) in planes.chunks_mut(block_bits * words).enumerate() {
+                let mut planes = vec![0u64; field.bits as usize * groups];
+                for (i, chunk) in planes.chunks_mut(block_bits * groups).enumerate() {
                     // A block never saved reads as zeros (the simulator's definition of VRAM
                     // never written).
                     if let Some(stored) = self.backing_store.get(&(block + i as u32)) {
@@ -454,7 +460,7 @@ impl Board {
                         &values,
                         rect,
                         field.bits,
-                        self.word_bits,
+                        self.ring_word_bits,
                         self.max_message_words,
                     ),
                 });
@@ -692,13 +698,13 @@ impl Board {
     /// One one-bit register of every pixel, row by row.
     pub fn bit_values(&self, b: Bit) -> Vec<bool> {
         let regs = self.engine.get().registers();
-        (0..self.geometry.words * 64)
+        (0..self.geometry.groups * 64)
             .map(|p| (regs.get(b, p / 64) >> (p % 64)) & 1 != 0)
             .collect()
     }
 }
 
-/// Which writes to enable a command makes, for [`crate::engine::Registers::active_words`].
+/// Which writes to enable a command makes, for [`crate::engine::Registers::active_groups`].
 fn enable_write(dst: Bit, combine: crate::LogicOp) -> Option<crate::LogicOp> {
     match dst {
         Bit::Enable => Some(combine),
@@ -719,12 +725,12 @@ pub struct BoardImage {
 
 impl BoardImage {
     /// SHA-256 of the state, hex: enable, flags, memory planes, then each written backing-store
-    /// block with its number, all as little-endian u64 words.
+    /// block with its number, each u64 little-endian.
     pub fn digest(&self) -> String {
         let mut h = Sha256::new();
-        let mut put = |words: &[u64]| {
-            for w in words {
-                h.update(w.to_le_bytes());
+        let mut put = |values: &[u64]| {
+            for v in values {
+                h.update(v.to_le_bytes());
             }
         };
         put(&self.enable);

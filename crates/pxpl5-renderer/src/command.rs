@@ -210,7 +210,13 @@ pub enum Command {
     Save { field: Field, block: u32 },
     /// Copy blocks of the backing store into a field, in the background.
     Load { field: Field, block: u32 },
-    /// Wait until every backing-store transfer has finished.
+    /// Backing-store fence: starts only once the background transfers of every `Save` and `Load`
+    /// executed before it on this board have finished (the wait counts as stall, not busy), then
+    /// costs `igc_overhead` cycles and changes no pixel state. It waits for nothing else: not the
+    /// ring, other boards or GPs, nor the delivery of a readback's messages (earlier commands
+    /// have ended anyway: a board runs one command at a time). It sends nothing, so no one outside
+    /// the board can see it complete; a program that must know a batch has executed waits for a
+    /// readback instead.
     Fence,
     /// Send a field of a rectangle of pixels to ring node `dest` as packed ring words
     /// (see [`crate::readback`] for the packing), with an opaque `tag` for the receiver (the

@@ -4,8 +4,9 @@
 //!
 //! - [`Command`] is the command set; [`cycle_cost`] is the one cycle table every level uses.
 //! - [`Board`] runs commands at a [`Fidelity`]: `bit` (every micro-cycle on bit-planes, the
-//!   reference) or `word` (per-pixel integers); pixel memory, flags and cycle counts are identical,
-//!   which the property tests in `tests/equivalence.rs` check on random command streams.
+//!   reference) or `integer` (per-pixel integers); pixel memory, flags and cycle counts are
+//!   identical, which the property tests in `tests/equivalence.rs` check on random command
+//!   streams.
 //! - [`qee`] fixes the QEE's exact semantics and its documented result-cut rule.
 //! - [`PixelLayout`] allocates named fields in pixel memory; [`readback`] packs ring words and messages.
 //!

@@ -30,8 +30,8 @@
 //!   only expressions with E != 0 use it.
 //!
 //! So `V = X(x) + Y(y) + Z(x, y)`, which [`Streams`] computes once per command and both fidelity
-//! levels consume: the `word` level adds the three as integers, the `bit` level feeds them through
-//! the pixels' serial adders one bit-plane per cycle.
+//! levels consume: the `integer` level adds the three as integers, the `bit` level feeds them
+//! through the pixels' serial adders one bit-plane per cycle.
 
 use pxpl5_config::FixedFormat;
 use thiserror::Error;

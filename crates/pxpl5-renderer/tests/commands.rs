@@ -1,6 +1,6 @@
 //! Every IGC command: its effect on pixels and its cycle count, asserted together, at both
-//! fidelity levels (each check runs the same commands on a `bit` and a `word` board and requires
-//! identical state).
+//! fidelity levels (each check runs the same commands on a `bit` and an `integer` board and
+//! requires identical state).
 
 use pxpl5_config::RendererConfig;
 use pxpl5_renderer::{
@@ -15,7 +15,7 @@ fn cfg() -> RendererConfig {
 
 /// Both boards, after running `setup`.
 fn boards(setup: &[Command]) -> [Board; 2] {
-    [Fidelity::Bit, Fidelity::Word].map(|f| {
+    [Fidelity::Bit, Fidelity::Integer].map(|f| {
         let mut b = Board::new(&cfg(), 32, f);
         for c in setup {
             b.execute(c).unwrap();
@@ -27,15 +27,15 @@ fn boards(setup: &[Command]) -> [Board; 2] {
 /// Run `cmd` on both levels; assert its cycles (end - start) and that the levels agree; return
 /// the bit board.
 fn check(setup: &[Command], cmd: Command, cycles: u64) -> Board {
-    let [mut bit, mut word] = boards(setup);
+    let [mut bit, mut integer] = boards(setup);
     let eb = bit.execute(&cmd).unwrap();
-    let ew = word.execute(&cmd).unwrap();
-    assert_eq!(eb, ew, "{cmd:?}: bit and word executions differ");
+    let ei = integer.execute(&cmd).unwrap();
+    assert_eq!(eb, ei, "{cmd:?}: bit and integer executions differ");
     assert_eq!((eb.end - eb.start).0, cycles, "{cmd:?}: cycles");
     assert_eq!(
         bit.image(),
-        word.image(),
-        "{cmd:?}: bit and word state differ"
+        integer.image(),
+        "{cmd:?}: bit and integer state differ"
     );
     bit
 }
@@ -232,9 +232,9 @@ fn backing_store_runs_in_the_background_and_interlocks() {
         dst: f,
         value: 0x12_3456_789A,
     }];
-    let [mut bit, mut word] = boards(&setup);
-    for b in [&mut bit, &mut word] {
-        let t0 = b.now().0;
+    let [mut bit, mut integer] = boards(&setup);
+    for b in [&mut bit, &mut integer] {
+        let t0 = b.free_at().0;
         let save = b.execute(&Command::Save { field: f, block: 5 }).unwrap();
         // Foreground: overhead + issue.
         assert_eq!(save.end.0 - save.start.0, 21);
@@ -259,7 +259,7 @@ fn backing_store_runs_in_the_background_and_interlocks() {
         assert_eq!(b.field_values(f)[777], 0x12_3456_789A);
         assert_eq!(b.stats().backing_store_busy.0, 4 * 4096);
     }
-    assert_eq!(bit.image(), word.image());
+    assert_eq!(bit.image(), integer.image());
 }
 
 #[test]
@@ -417,7 +417,7 @@ fn program_mistakes_are_errors_not_panics() {
         CommandError::Constant { .. }
     ));
     // Nothing ran: time did not move.
-    assert_eq!(b.now().0, 0);
+    assert_eq!(b.free_at().0, 0);
 }
 
 #[test]

@@ -1,14 +1,14 @@
-//! Property tests: the `bit` and `word` fidelity levels agree exactly (every command's outcome and
-//! timing, pixel memory, enable, flags, backing store) over random command streams, coefficients,
-//! windows, origins and enable masks. Errors must agree too: a command one level rejects, the
-//! other rejects the same way.
+//! Property tests: the `bit` and `integer` fidelity levels agree exactly (every command's outcome
+//! and timing, pixel memory, enable, flags, backing store) over random command streams,
+//! coefficients, windows, origins and enable masks. Errors must agree too: a command one level
+//! rejects, the other rejects the same way.
 
 use proptest::prelude::*;
 use pxpl5_config::RendererConfig;
 use pxpl5_renderer::{Bit, Board, Cmp, Command, Fidelity, Field, LogicOp, QeeExpr, Rect, Window};
 
 /// Fields that exercise the layouts that matter: signed and unsigned, one bit, a field straddling
-/// the word level's 64-bit lanes, a 64-bit field, and the last bits of memory.
+/// the integer level's 64-bit limbs, a 64-bit field, and the last bits of memory.
 const FIELDS: [(u32, u32, bool); 8] = [
     (0, 8, true),
     (8, 13, false),
@@ -156,20 +156,20 @@ fn small() -> RendererConfig {
 
 fn run_both(cfg: &RendererConfig, commands: &[Command]) -> Result<(), TestCaseError> {
     let mut bit = Board::new(cfg, 32, Fidelity::Bit);
-    let mut word = Board::new(cfg, 32, Fidelity::Word);
+    let mut integer = Board::new(cfg, 32, Fidelity::Integer);
     for (i, c) in commands.iter().enumerate() {
         let rb = bit.execute(c);
-        let rw = word.execute(c);
-        prop_assert_eq!(&rb, &rw, "command {} {:?}: outcomes differ", i, c);
-        prop_assert_eq!(bit.now(), word.now());
+        let ri = integer.execute(c);
+        prop_assert_eq!(&rb, &ri, "command {} {:?}: outcomes differ", i, c);
+        prop_assert_eq!(bit.free_at(), integer.free_at());
     }
-    prop_assert_eq!(bit.stats(), word.stats());
-    let (ib, iw) = (bit.image(), word.image());
+    prop_assert_eq!(bit.stats(), integer.stats());
+    let (ib, ii) = (bit.image(), integer.image());
     prop_assert!(
-        ib == iw,
+        ib == ii,
         "final state differs: {} vs {}",
         ib.digest(),
-        iw.digest()
+        ii.digest()
     );
     Ok(())
 }
@@ -178,7 +178,7 @@ proptest! {
     #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
 
     #[test]
-    fn bit_and_word_agree_on_random_streams(commands in prop::collection::vec(command(), 1..40)) {
+    fn bit_and_integer_agree_on_random_streams(commands in prop::collection::vec(command(), 1..40)) {
         run_both(&small(), &commands)?;
     }
 }
@@ -187,12 +187,12 @@ proptest! {
     #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
 
     #[test]
-    fn bit_and_word_agree_on_the_full_board(commands in prop::collection::vec(command(), 1..30)) {
+    fn bit_and_integer_agree_on_the_full_board(commands in prop::collection::vec(command(), 1..30)) {
         run_both(&pxpl5_config::default_config().renderer, &commands)?;
     }
 }
 
-/// Sign tests alone, many of them: the word level solves them per row span (monotone pieces,
+/// Sign tests alone, many of them: the integer level solves them per row span (monotone pieces,
 /// binary search, per-pixel fallback where the window could wrap), the bit level pixel by pixel.
 fn sign_tests() -> impl Strategy<Value = Vec<Command>> {
     let one = (expr(), window(), bit(), logic_op(), any::<bool>()).prop_map(

@@ -39,14 +39,14 @@ use std::fmt;
 use std::io::{self, Write};
 
 use pxpl5_sim::Tick;
-use serde_json::{Map, Value};
 
+use crate::json::{JsonValue, write_object, write_string};
 use crate::window::TraceWindow;
 
 /// Arguments attached to an event (shown in the viewer's details panel).
-pub type Args = Map<String, Value>;
+pub type Args = BTreeMap<String, JsonValue>;
 
-/// Words placed in `otherData.time_unit`: a reader must not mistake simulated for host time.
+/// The note placed in `otherData.time_unit`: a reader must not mistake simulated for host time.
 pub const TIME_UNIT_NOTE: &str =
     "1 trace microsecond = 1 simulated microsecond (timestamps are simulated time, not host time)";
 
@@ -115,7 +115,7 @@ struct CounterSample {
 #[derive(Debug)]
 pub struct ChromeTrace {
     window: TraceWindow,
-    metadata: BTreeMap<String, Value>,
+    metadata: BTreeMap<String, JsonValue>,
     processes: Vec<Process>,
     process_ids: HashMap<String, usize>,
     tracks: Vec<Track>,
@@ -165,7 +165,7 @@ impl ChromeTrace {
     /// Adds `key: value` to the file's `otherData` (e.g. the machine configuration's name), written
     /// in key order. Setting a key again replaces its value. The keys in
     /// [`RESERVED_METADATA_KEYS`] belong to the builder and are ignored here.
-    pub fn metadata(&mut self, key: &str, value: impl Into<Value>) {
+    pub fn metadata(&mut self, key: &str, value: impl Into<JsonValue>) {
         if !RESERVED_METADATA_KEYS.contains(&key) {
             self.metadata.insert(key.to_owned(), value.into());
         }
@@ -192,7 +192,8 @@ impl ChromeTrace {
     /// Records a complete slice `[start, end)` named `name` on `track`.
     ///
     /// `args` is anything yielding `(key, value)` pairs: an [`Args`] map, a
-    /// `Vec<(String, Value)>`, or an array such as `[("cmd", json!(3))]`; `Args::new()` for none.
+    /// `Vec<(String, JsonValue)>`, or an array such as `[("cmd", JsonValue::from(3))]`;
+    /// `Args::new()` for none.
     /// A later duplicate key wins. `end < start` is taken as `end == start` (a zero-length slice).
     ///
     /// Slices on one track must be properly nested or disjoint for Perfetto to draw them (see
@@ -203,14 +204,14 @@ impl ChromeTrace {
         name: &str,
         start: Tick,
         end: Tick,
-        args: impl IntoIterator<Item = (K, Value)>,
+        args: impl IntoIterator<Item = (K, JsonValue)>,
     ) {
         let Some((start, end, clipped)) = self.clip(start, end) else {
             return;
         };
         let mut args: Args = args.into_iter().map(|(k, v)| (k.into(), v)).collect();
         if clipped {
-            args.insert("clipped".to_owned(), Value::Bool(true));
+            args.insert("clipped".to_owned(), JsonValue::Bool(true));
         }
         let event = Event {
             ts: start,
@@ -280,7 +281,7 @@ impl ChromeTrace {
         track: TrackId,
         name: &str,
         at: Tick,
-        args: impl IntoIterator<Item = (K, Value)>,
+        args: impl IntoIterator<Item = (K, JsonValue)>,
     ) {
         if !self.window.contains(at) {
             return;
@@ -377,14 +378,14 @@ impl ChromeTrace {
     /// Writes the trace as JSON to `w` (wrap a file in a `BufWriter`: this writes in small pieces).
     pub fn write<W: Write>(&self, mut w: W) -> io::Result<()> {
         w.write_all(b"{\"displayTimeUnit\":\"ns\",\"otherData\":{\"time_unit\":")?;
-        serde_json::to_writer(&mut w, TIME_UNIT_NOTE)?;
+        write_string(&mut w, TIME_UNIT_NOTE)?;
         w.write_all(b",\"trace_window\":")?;
-        serde_json::to_writer(&mut w, &self.window.to_string())?;
+        write_string(&mut w, &self.window.to_string())?;
         for (key, value) in &self.metadata {
             w.write_all(b",")?;
-            serde_json::to_writer(&mut w, key)?;
+            write_string(&mut w, key)?;
             w.write_all(b":")?;
-            serde_json::to_writer(&mut w, value)?;
+            value.write_to(&mut w)?;
         }
         w.write_all(b"},\"traceEvents\":[")?;
 
@@ -401,7 +402,7 @@ impl ChromeTrace {
                 "{{\"ph\":\"M\",\"name\":\"process_name\",\"pid\":{},\"args\":{{\"name\":",
                 p.pid
             )?;
-            serde_json::to_writer(&mut w, &p.name)?;
+            write_string(&mut w, &p.name)?;
             w.write_all(b"}}")?;
             separator(&mut w)?;
             write!(
@@ -418,7 +419,7 @@ impl ChromeTrace {
                 "{{\"ph\":\"M\",\"name\":\"thread_name\",\"pid\":{pid},\"tid\":{},\"args\":{{\"name\":",
                 t.tid
             )?;
-            serde_json::to_writer(&mut w, &t.name)?;
+            write_string(&mut w, &t.name)?;
             w.write_all(b"}}")?;
             separator(&mut w)?;
             write!(
@@ -440,7 +441,7 @@ impl ChromeTrace {
             Kind::Slice { track, dur } => {
                 let t = &self.tracks[track.0];
                 w.write_all(b"{\"ph\":\"X\",\"name\":")?;
-                serde_json::to_writer(&mut *w, name)?;
+                write_string(w, name)?;
                 write!(
                     w,
                     ",\"pid\":{},\"tid\":{},\"ts\":{},\"dur\":{}",
@@ -453,7 +454,7 @@ impl ChromeTrace {
             Kind::Instant { track } => {
                 let t = &self.tracks[track.0];
                 w.write_all(b"{\"ph\":\"i\",\"s\":\"t\",\"name\":")?;
-                serde_json::to_writer(&mut *w, name)?;
+                write_string(w, name)?;
                 write!(
                     w,
                     ",\"pid\":{},\"tid\":{},\"ts\":{}",
@@ -464,7 +465,7 @@ impl ChromeTrace {
             }
             Kind::Counter { process, value } => {
                 w.write_all(b"{\"ph\":\"C\",\"name\":")?;
-                serde_json::to_writer(&mut *w, name)?;
+                write_string(w, name)?;
                 write!(
                     w,
                     ",\"pid\":{},\"ts\":{},\"args\":{{\"value\":{value}}}}}",
@@ -476,7 +477,7 @@ impl ChromeTrace {
         }
         if !e.args.is_empty() {
             w.write_all(b",\"args\":")?;
-            serde_json::to_writer(&mut *w, e.args.as_ref())?;
+            write_object(w, &e.args)?;
         }
         w.write_all(b"}")
     }
@@ -526,9 +527,9 @@ impl ChromeTrace {
             }
             for g in merged {
                 let mut args = Args::new();
-                args.insert("count".to_owned(), Value::from(g.count));
+                args.insert("count".to_owned(), JsonValue::from(g.count));
                 if g.clipped {
-                    args.insert("clipped".to_owned(), Value::Bool(true));
+                    args.insert("clipped".to_owned(), JsonValue::Bool(true));
                 }
                 out.push(OutEvent {
                     ts: g.start,

@@ -8,6 +8,9 @@
 //! identical input, whatever the platform and whatever order events at different times were
 //! recorded in, so traces can be compared and committed as golden files.
 //!
+//! The crate takes plain data and writes its own JSON ([`JsonValue`] for event args and file
+//! metadata): like the rest of the simulator core, it has no serde dependency.
+//!
 //! ```
 //! use pxpl5_sim::Tick;
 //! use pxpl5_trace::{Args, ChromeTrace, TraceWindow, VcdTrace};
@@ -28,6 +31,7 @@
 #![warn(missing_docs)]
 
 mod chrome;
+mod json;
 mod vcd_trace;
 mod window;
 
@@ -35,6 +39,7 @@ pub use chrome::{
     Args, ChromeTrace, Micros, NestingError, RESERVED_METADATA_KEYS, SliceSpan, TIME_UNIT_NOTE,
     TrackId,
 };
+pub use json::JsonValue;
 pub use pxpl5_sim::Tick;
 pub use vcd_trace::{MAX_WIDTH, ScopeId, SignalId, VcdTrace, WidthError};
 pub use window::{

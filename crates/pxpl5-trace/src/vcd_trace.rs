@@ -18,8 +18,8 @@
 //!   in a simulator's delta cycles); a change to the value a wire already has is not written.
 //! * Window: changes before the start are folded into the initial values, changes at or after
 //!   the end are dropped (both as they are recorded, so a long run need not fit in memory).
-//! * Names: VCD names are whitespace-separated tokens, so characters other than printable ASCII
-//!   (space included) become `_`, and an empty name becomes `_`.
+//! * Names: a VCD name may hold no whitespace, so characters other than printable ASCII (space
+//!   included) become `_`, and an empty name becomes `_`.
 
 use std::collections::HashMap;
 use std::fmt;
@@ -298,7 +298,7 @@ fn mask(value: u64, width: u32) -> u64 {
     }
 }
 
-/// `name` as one VCD token: printable ASCII other than space kept, everything else `_`.
+/// `name` as a VCD name: printable ASCII other than space kept, everything else `_`.
 fn vcd_name(name: &str) -> String {
     if name.is_empty() {
         return "_".to_owned();
@@ -313,7 +313,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn names_become_single_tokens() {
+    fn names_hold_no_whitespace() {
         assert_eq!(vcd_name("GP 0"), "GP_0");
         assert_eq!(vcd_name("ch\t2\n"), "ch_2_");
         assert_eq!(vcd_name("µs"), "_s");

@@ -2,7 +2,7 @@
 //! without floats), deterministic, windowed, grouped, and nests as Perfetto needs.
 
 use pxpl5_sim::Tick;
-use pxpl5_trace::{Args, ChromeTrace, TraceWindow};
+use pxpl5_trace::{Args, ChromeTrace, JsonValue, TraceWindow};
 use serde_json::{Value, json};
 
 fn parse(trace: &ChromeTrace) -> Value {
@@ -45,7 +45,7 @@ fn whole_output_of_a_small_trace() {
         "transform",
         Tick(25_000),
         Tick(75_000),
-        [("prims", json!(3))],
+        [("prims", JsonValue::from(3))],
     );
     t.instant(gp, "sync", Tick(75_000));
     t.counter("Ring", "queue depth", Tick(50_000), -2);
@@ -71,7 +71,7 @@ fn whole_output_of_a_small_trace() {
 fn parses_as_json_with_metadata() {
     let mut t = ChromeTrace::new(window("0..2ms"));
     t.metadata("frames", 3);
-    t.metadata("config", json!({"gps": 8}));
+    t.metadata("config", JsonValue::object([("gps", 8)]));
     // Reserved keys stay the builder's.
     t.metadata("time_unit", "host seconds");
     t.metadata("trace_window", "everything");
@@ -200,7 +200,7 @@ fn names_and_args_are_escaped() {
         "say \"hi\"\n",
         Tick(0),
         Tick(10),
-        vec![("k\"ey".to_owned(), json!("v\u{0}al"))],
+        vec![("k\"ey".to_owned(), JsonValue::from("v\u{0}al"))],
     );
     let e = events(&t);
     assert_eq!(e[0]["name"], "say \"hi\"\n");
@@ -220,23 +220,23 @@ fn args_from_a_map_a_vec_or_an_array() {
     let mut t = ChromeTrace::default();
     let tr = t.track("p", "t");
     let mut map = Args::new();
-    map.insert("m".into(), json!(1));
+    map.insert("m".into(), JsonValue::from(1));
     t.slice(tr, "map", Tick(0), Tick(1), map);
     t.slice(
         tr,
         "vec",
         Tick(1),
         Tick(2),
-        vec![("v".to_owned(), json!([1, 2]))],
+        vec![("v".to_owned(), JsonValue::from(vec![1, 2]))],
     );
     t.slice(
         tr,
         "array",
         Tick(2),
         Tick(3),
-        [("a", json!(true)), ("a", json!(false))],
+        [("a", JsonValue::from(true)), ("a", JsonValue::from(false))],
     );
-    t.instant_with_args(tr, "instant", Tick(3), [("i", json!(null))]);
+    t.instant_with_args(tr, "instant", Tick(3), [("i", JsonValue::Null)]);
     let e = events(&t);
     assert_eq!(e[0]["args"], json!({"m": 1}));
     assert_eq!(e[1]["args"], json!({"v": [1, 2]}));
@@ -269,7 +269,7 @@ fn build(order: &[usize]) -> ChromeTrace {
                 "transform",
                 Tick(20_000),
                 Tick(60_000),
-                [("n", json!(1))],
+                [("n", JsonValue::from(1))],
             )
         }),
         Box::new(move |t| t.slice(gp, "clip", Tick(60_000), Tick(70_000), Args::new())),
@@ -354,14 +354,14 @@ fn window_drops_and_clips() {
         "inside",
         Tick(1_100_000),
         Tick(1_200_000),
-        [("k", json!(1))],
+        [("k", JsonValue::from(1))],
     );
     t.slice(
         tr,
         "crosses start",
         Tick(500_000),
         Tick(1_500_000),
-        [("k", json!(2))],
+        [("k", JsonValue::from(2))],
     );
     t.slice(
         tr,
@@ -611,4 +611,80 @@ fn empty_trace_is_valid_json() {
     let t = ChromeTrace::default();
     let json = parse(&t);
     assert_eq!(json["traceEvents"], json!([]));
+}
+
+/// The same value as serde_json builds it.
+fn to_serde(v: &JsonValue) -> Value {
+    match v {
+        JsonValue::Null => Value::Null,
+        JsonValue::Bool(b) => Value::Bool(*b),
+        JsonValue::Integer(n) => match i64::try_from(*n) {
+            Ok(n) => Value::from(n),
+            Err(_) => Value::from(u64::try_from(*n).expect("a 64-bit integer")),
+        },
+        JsonValue::String(s) => Value::String(s.clone()),
+        JsonValue::Array(items) => Value::Array(items.iter().map(to_serde).collect()),
+        JsonValue::Object(map) => {
+            Value::Object(map.iter().map(|(k, v)| (k.clone(), to_serde(v))).collect())
+        }
+    }
+}
+
+/// The crate's JSON writer replaced serde_json's: traces must stay byte-identical, so its output
+/// is checked against serde_json's on every ASCII character, on non-ASCII text and on nesting.
+#[test]
+fn json_writer_matches_serde_json() {
+    let mut strings: Vec<String> = (0u8..=0x7F).map(|b| char::from(b).to_string()).collect();
+    strings.push((0u8..=0x7F).map(char::from).collect());
+    strings.extend(
+        [
+            "",
+            "é",
+            "\u{2028}\u{2029}",
+            "😀 GP 0 -> Renderer 3",
+            "a\"b\\\u{0}\u{1f}\u{7f}z",
+        ]
+        .map(String::from),
+    );
+    let mut values: Vec<JsonValue> = strings.iter().map(JsonValue::from).collect();
+    values.extend([
+        JsonValue::Null,
+        true.into(),
+        false.into(),
+        0.into(),
+        i64::MIN.into(),
+        i64::MAX.into(),
+        u64::MAX.into(),
+        Vec::<u8>::new().into(),
+        JsonValue::object(Vec::<(String, JsonValue)>::new()),
+    ]);
+    let object = JsonValue::object(
+        strings
+            .iter()
+            .enumerate()
+            .map(|(i, s)| (s.clone(), JsonValue::from(vec![i as u64, 7]))),
+    );
+    values.push(JsonValue::from(vec![object.clone(), JsonValue::Null]));
+    values.push(object);
+    for v in &values {
+        let ours = v.to_string();
+        let theirs = serde_json::to_string(&to_serde(v)).unwrap();
+        assert_eq!(ours, theirs, "{v:?}");
+    }
+    // And a whole trace's args, metadata and names go through the same writer.
+    let mut t = ChromeTrace::default();
+    t.metadata("units", vec!["GP 0", "\u{1}\""]);
+    let tr = t.track("p\u{7}", "t\u{1b}");
+    t.slice(
+        tr,
+        "s\r",
+        Tick(0),
+        Tick(1),
+        [("k\u{0}", JsonValue::from(u64::MAX))],
+    );
+    let text = t.to_string();
+    let reparsed: Value = serde_json::from_str(&text).unwrap();
+    assert!(text.contains(r#""units":["GP 0","\u0001\""]"#), "{text}");
+    assert!(text.contains(r#""name":"s\r""#) && text.contains(r#""k\u0000":18446744073709551615"#));
+    assert_eq!(reparsed["otherData"]["units"][1], "\u{1}\"");
 }

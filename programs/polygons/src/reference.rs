@@ -6,14 +6,14 @@
 
 use crate::scene::TriangleScene;
 use pxpl5_config::MachineConfig;
-use pxpl5_machine::Frame;
+use pxpl5_machine::FrameBufferImage;
 use pxpl5_renderer::Window;
 
 use crate::geometry::{DEPTH_SHIFT, View, regions, triangle_exprs};
 use crate::{Fields, Screen, depth_clear};
 
 /// The frame the polygon program should produce for `scene` on `cfg`.
-pub fn reference_frame(scene: &TriangleScene, cfg: &MachineConfig) -> Frame {
+pub fn reference_frame(scene: &TriangleScene, cfg: &MachineConfig) -> FrameBufferImage {
     let (fw, fh) = (cfg.frame_buffer.width, cfg.frame_buffer.height);
     let side = cfg.renderer.width.min(cfg.renderer.height);
     let format = cfg.renderer.qee.coefficient_format;
@@ -77,7 +77,7 @@ pub fn reference_frame(scene: &TriangleScene, cfg: &MachineConfig) -> Frame {
             }
         }
     }
-    Frame {
+    FrameBufferImage {
         width: fw,
         height: fh,
         rgb,

@@ -17,13 +17,13 @@ fn renderer(c: &mut Criterion) {
         };
         let stream = cornell_stream(&cfg, &opts, 1).expect("the stream fits the seed");
         let cycles = {
-            let mut b = Board::new(&cfg.renderer, cfg.ring.word_bits, Fidelity::Word);
+            let mut b = Board::new(&cfg.renderer, cfg.ring.word_bits, Fidelity::Integer);
             stream.run(&mut b).expect("runs").0
         };
         let mut group = c.benchmark_group(format!("cornell_{}_1_shot", method.name()));
         group.throughput(Throughput::Elements(cycles));
         group.sample_size(10);
-        for fidelity in [Fidelity::Bit, Fidelity::Word] {
+        for fidelity in [Fidelity::Bit, Fidelity::Integer] {
             group.bench_function(fidelity.name(), |b| {
                 b.iter(|| {
                     let mut board = Board::new(&cfg.renderer, cfg.ring.word_bits, fidelity);

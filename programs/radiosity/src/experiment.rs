@@ -47,7 +47,7 @@ impl Default for Settings {
             shooters_at_once: 1,
             item_shots: Vec::new(),
             run: RunOptions {
-                fidelity: Fidelity::Word,
+                fidelity: Fidelity::Integer,
                 // 1,000 simulated seconds, far beyond the machine's default of 10: a fine mesh
                 // with many shots may need it, and a runaway program still stops.
                 max_time: Tick(1_000_000_000_000_000),

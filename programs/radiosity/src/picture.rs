@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 
 use pxpl5_config::MachineConfig;
 use pxpl5_geom::DVec3;
-use pxpl5_machine::{Frame, Machine, Recorder, RunError, RunOptions, RunResult};
+use pxpl5_machine::{FrameBufferImage, Machine, Recorder, RunError, RunOptions, RunResult};
 use pxpl5_polygons::Polygons;
 use pxpl5_polygons::scene::{Camera, Triangle, TriangleScene};
 
@@ -168,7 +168,7 @@ pub fn render(
 
 /// An item buffer as a picture: one colour per ID (a multiplicative hash, lightened so that no
 /// patch is black), black where nothing was drawn, the buffer's row 0 at the bottom.
-pub fn item_buffer_picture(b: &ItemBuffer) -> Frame {
+pub fn item_buffer_picture(b: &ItemBuffer) -> FrameBufferImage {
     let mut rgb = Vec::with_capacity((b.width * b.rows * 3) as usize);
     for row in (0..b.rows).rev() {
         for col in 0..b.width {
@@ -185,7 +185,7 @@ pub fn item_buffer_picture(b: &ItemBuffer) -> Frame {
             }
         }
     }
-    Frame {
+    FrameBufferImage {
         width: b.width,
         height: b.rows,
         rgb,

@@ -48,7 +48,7 @@ impl Stream {
         for c in &self.commands {
             board.execute(c)?;
         }
-        Ok(board.now())
+        Ok(board.free_at())
     }
 }
 

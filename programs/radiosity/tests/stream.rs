@@ -21,7 +21,7 @@ fn both_levels_agree_and_the_hemisphere_draws_the_box() {
     // The first shooter is a patch of the light, the brightest.
     assert_eq!(stream.shooters.len(), 1);
     let mut bit = Board::new(&cfg.renderer, cfg.ring.word_bits, Fidelity::Bit);
-    let mut word = Board::new(&cfg.renderer, cfg.ring.word_bits, Fidelity::Word);
+    let mut word = Board::new(&cfg.renderer, cfg.ring.word_bits, Fidelity::Integer);
     let cb = stream.run(&mut bit).unwrap();
     let cw = stream.run(&mut word).unwrap();
     assert_eq!(cb, cw);
@@ -49,14 +49,14 @@ fn sign_tests_cost_what_the_program_s_do() {
     // program, not a model of it.
     let cfg = pxpl5_config::default_config();
     let stream = cornell_stream(&cfg, &options(Method::Hemisphere), 3).unwrap();
-    let mut board = Board::new(&cfg.renderer, cfg.ring.word_bits, Fidelity::Word);
+    let mut board = Board::new(&cfg.renderer, cfg.ring.word_bits, Fidelity::Integer);
     stream.run(&mut board).unwrap();
     let sign = &board.stats().by_kind["qee_sign"];
     let mean = sign.cycles as f64 / sign.count as f64;
     assert!((60.0..66.0).contains(&mean), "{mean}");
     // The hemicube's faces run on the one board too, five views per shot.
     let cube = cornell_stream(&cfg, &options(Method::Hemicube), 1).unwrap();
-    let mut board = Board::new(&cfg.renderer, cfg.ring.word_bits, Fidelity::Word);
+    let mut board = Board::new(&cfg.renderer, cfg.ring.word_bits, Fidelity::Integer);
     cube.run(&mut board).unwrap();
     assert_eq!(board.stats().by_kind["set_origin"].count, 5);
 }

@@ -15,7 +15,7 @@ use crate::qee::{Streams, Window};
 /// Bit-plane pixel memory and the shared one-bit registers.
 pub struct BitEngine {
     geometry: Geometry,
-    /// `memory_bits` planes of `geometry.words` words, plane-major.
+    /// `memory_bits` planes of `geometry.groups` u64s (one per group), plane-major.
     planes: Vec<u64>,
     regs: Registers,
 }
@@ -31,37 +31,37 @@ impl BitEngine {
     pub fn new(geometry: Geometry, memory_bits: u32, flag_count: usize) -> BitEngine {
         BitEngine {
             geometry,
-            planes: vec![0; memory_bits as usize * geometry.words],
+            planes: vec![0; memory_bits as usize * geometry.groups],
             regs: Registers::new(geometry, flag_count),
         }
     }
 
-    /// Bit `k` of field `f` for word `w`, extended past the field's top by its signedness.
+    /// Bit `k` of field `f` for group `g`, extended past the field's top by its signedness.
     #[inline(always)]
-    fn bit(&self, f: Field, k: u32, w: usize) -> u64 {
+    fn bit(&self, f: Field, k: u32, g: usize) -> u64 {
         if k < f.bits {
-            self.planes[(f.offset + k) as usize * self.geometry.words + w]
+            self.planes[(f.offset + k) as usize * self.geometry.groups + g]
         } else if f.signed {
-            self.planes[(f.offset + f.bits - 1) as usize * self.geometry.words + w]
+            self.planes[(f.offset + f.bits - 1) as usize * self.geometry.groups + g]
         } else {
             0
         }
     }
 
-    /// Write bit `k` of field `f` for word `w` where `en` is set.
+    /// Write bit `k` of field `f` for group `g` where `en` is set.
     #[inline(always)]
-    fn write(&mut self, f: Field, k: u32, w: usize, v: u64, en: u64) {
-        let p = &mut self.planes[(f.offset + k) as usize * self.geometry.words + w];
+    fn write(&mut self, f: Field, k: u32, g: usize, v: u64, en: u64) {
+        let p = &mut self.planes[(f.offset + k) as usize * self.geometry.groups + g];
         *p = (*p & !en) | (v & en);
     }
 
-    /// The 64 planes of the x-tree stream for each column word.
+    /// The 64 planes of the x-tree stream for each group position `cg` along a row.
     fn column_planes(&self, s: &Streams) -> Vec<[u64; 64]> {
-        (0..self.geometry.words_per_row)
-            .map(|cw| {
+        (0..self.geometry.groups_per_row)
+            .map(|cg| {
                 let mut m = [0u64; 64];
                 for (i, v) in m.iter_mut().enumerate() {
-                    *v = s.col[cw * 64 + i] as u64;
+                    *v = s.col[cg * 64 + i] as u64;
                 }
                 transpose64(&mut m);
                 m
@@ -88,9 +88,9 @@ impl PixelEngine for BitEngine {
         // so the same bits).
         let mut cross = [0u64; 64];
         let mut cross_row = usize::MAX;
-        for &w in active {
-            let w = w as usize;
-            let (py, px0) = self.geometry.word_origin(w);
+        for &g in active {
+            let g = g as usize;
+            let (py, px0) = self.geometry.group_origin(g);
             let col = &cols[px0 / 64];
             let mut row = s.row[py] as u64;
             if s.cross {
@@ -103,7 +103,7 @@ impl PixelEngine for BitEngine {
                 }
                 row = row.wrapping_add((s.e_row[py] * (s.origin_x + px0 as i64)) as u64);
             }
-            let en = self.regs.enable[w];
+            let en = self.regs.enable[g];
             // Carries of the pixels' two stream adders and of the ALU.
             let (mut c1, mut c2) = (0u64, 0u64);
             let mut alu_carry = match sink {
@@ -130,14 +130,14 @@ impl PixelEngine for BitEngine {
                 let k = j - window.shift;
                 match sink {
                     QeeSink::Sign { .. } => last = v,
-                    QeeSink::Store { dst } => self.write(dst, k, w, v, en),
+                    QeeSink::Store { dst } => self.write(dst, k, g, v, en),
                     QeeSink::Add { dst } => {
-                        let (sum, c) = full_add(self.bit(dst, k, w), v, alu_carry);
+                        let (sum, c) = full_add(self.bit(dst, k, g), v, alu_carry);
                         alu_carry = c;
-                        self.write(dst, k, w, sum, en);
+                        self.write(dst, k, g, sum, en);
                     }
                     QeeSink::Compare { field, .. } => {
-                        let r = self.bit(field, k, w);
+                        let r = self.bit(field, k, g);
                         let (d, c) = full_add(v, !r, alu_carry);
                         alu_carry = c;
                         differs |= v ^ r;
@@ -154,48 +154,48 @@ impl PixelEngine for BitEngine {
                 }
             }
             match sink {
-                QeeSink::Sign { dst, combine } => self.regs.combine(dst, w, !last, combine),
+                QeeSink::Sign { dst, combine } => self.regs.combine(dst, g, !last, combine),
                 QeeSink::Compare {
                     cmp, dst, combine, ..
                 } => self
                     .regs
-                    .combine(dst, w, cmp.from_lt_eq(last, !differs), combine),
+                    .combine(dst, g, cmp.from_lt_eq(last, !differs), combine),
                 QeeSink::Store { .. } | QeeSink::Add { .. } => {}
             }
         }
     }
 
     fn write_const(&mut self, dst: Field, value: u64, active: &[u32]) {
-        for &w in active {
-            let w = w as usize;
-            let en = self.regs.enable[w];
+        for &g in active {
+            let g = g as usize;
+            let en = self.regs.enable[g];
             for k in 0..dst.bits {
-                self.write(dst, k, w, ((value >> k) & 1).wrapping_neg(), en);
+                self.write(dst, k, g, ((value >> k) & 1).wrapping_neg(), en);
             }
         }
     }
 
     fn copy(&mut self, dst: Field, src: Field, active: &[u32]) {
-        for &w in active {
-            let w = w as usize;
-            let en = self.regs.enable[w];
+        for &g in active {
+            let g = g as usize;
+            let en = self.regs.enable[g];
             for k in 0..dst.bits {
-                let v = self.bit(src, k, w);
-                self.write(dst, k, w, v, en);
+                let v = self.bit(src, k, g);
+                self.write(dst, k, g, v, en);
             }
         }
     }
 
     fn add_sub(&mut self, dst: Field, a: Field, b: Field, subtract: bool, active: &[u32]) {
         let invert = if subtract { u64::MAX } else { 0 };
-        for &w in active {
-            let w = w as usize;
-            let en = self.regs.enable[w];
+        for &g in active {
+            let g = g as usize;
+            let en = self.regs.enable[g];
             let mut carry = invert;
             for k in 0..dst.bits {
-                let (s, c) = full_add(self.bit(a, k, w), self.bit(b, k, w) ^ invert, carry);
+                let (s, c) = full_add(self.bit(a, k, g), self.bit(b, k, g) ^ invert, carry);
                 carry = c;
-                self.write(dst, k, w, s, en);
+                self.write(dst, k, g, s, en);
             }
         }
     }
@@ -211,20 +211,20 @@ impl PixelEngine for BitEngine {
     ) {
         // Both operands extended to max + 2 bits: their difference cannot overflow there.
         let width = a.bits.max(b.bits) + 2;
-        for &w in active {
-            let w = w as usize;
+        for &g in active {
+            let g = g as usize;
             let mut carry = u64::MAX;
             let mut differs = 0u64;
             let mut d = 0u64;
             for k in 0..width {
-                let (x, y) = (self.bit(a, k, w), self.bit(b, k, w));
+                let (x, y) = (self.bit(a, k, g), self.bit(b, k, g));
                 differs |= x ^ y;
                 let (s, c) = full_add(x, !y, carry);
                 carry = c;
                 d = s;
             }
             self.regs
-                .combine(dst, w, cmp.from_lt_eq(d, !differs), combine);
+                .combine(dst, g, cmp.from_lt_eq(d, !differs), combine);
         }
     }
 
@@ -233,8 +233,8 @@ impl PixelEngine for BitEngine {
         // bit, subtract) src << j into an accumulator of dst's width, then store it where enabled.
         let n = dst.bits;
         let mut acc = [0u64; 64];
-        for &w in active {
-            let w = w as usize;
+        for &g in active {
+            let g = g as usize;
             acc[..n as usize].fill(0);
             for j in 0..k_bits.min(n) {
                 if (k >> j) & 1 == 0 {
@@ -244,54 +244,54 @@ impl PixelEngine for BitEngine {
                 let invert = if negative { u64::MAX } else { 0 };
                 let mut carry = invert;
                 for t in j..n {
-                    let (s, c) = full_add(acc[t as usize], self.bit(src, t - j, w) ^ invert, carry);
+                    let (s, c) = full_add(acc[t as usize], self.bit(src, t - j, g) ^ invert, carry);
                     carry = c;
                     acc[t as usize] = s;
                 }
             }
-            let en = self.regs.enable[w];
+            let en = self.regs.enable[g];
             for t in 0..n {
-                self.write(dst, t, w, acc[t as usize], en);
+                self.write(dst, t, g, acc[t as usize], en);
             }
         }
     }
 
     fn read_planes(&self, field: Field) -> Vec<u64> {
-        let words = self.geometry.words;
-        let start = field.offset as usize * words;
-        self.planes[start..start + field.bits as usize * words].to_vec()
+        let groups = self.geometry.groups;
+        let start = field.offset as usize * groups;
+        self.planes[start..start + field.bits as usize * groups].to_vec()
     }
 
     fn write_planes(&mut self, field: Field, planes: &[u64]) {
-        let words = self.geometry.words;
-        let start = field.offset as usize * words;
-        self.planes[start..start + field.bits as usize * words].copy_from_slice(planes);
+        let groups = self.geometry.groups;
+        let start = field.offset as usize * groups;
+        self.planes[start..start + field.bits as usize * groups].copy_from_slice(planes);
     }
 
     fn write_values(&mut self, field: Field, rect: Rect, values: &[u64]) {
-        let g = self.geometry;
+        let per_row = self.geometry.groups_per_row;
         let mut it = values.iter();
         for py in rect.y as usize..(rect.y + rect.height) as usize {
             for px in rect.x as usize..(rect.x + rect.width) as usize {
-                let w = py * g.words_per_row + px / 64;
+                let g = py * per_row + px / 64;
                 let v = *it.next().expect("validated length");
                 for k in 0..field.bits {
                     let bit = ((v >> k) & 1).wrapping_neg();
-                    self.write(field, k, w, bit, 1 << (px % 64));
+                    self.write(field, k, g, bit, 1 << (px % 64));
                 }
             }
         }
     }
 
     fn read_values(&self, field: Field, rect: Rect) -> Vec<u64> {
-        let g = self.geometry;
+        let per_row = self.geometry.groups_per_row;
         let mut out = Vec::with_capacity((rect.width * rect.height) as usize);
         for py in rect.y as usize..(rect.y + rect.height) as usize {
             for px in rect.x as usize..(rect.x + rect.width) as usize {
-                let w = py * g.words_per_row + px / 64;
+                let g = py * per_row + px / 64;
                 let mut v = 0u64;
                 for k in 0..field.bits {
-                    v |= ((self.bit(field, k, w) >> (px % 64)) & 1) << k;
+                    v |= ((self.bit(field, k, g) >> (px % 64)) & 1) << k;
                 }
                 out.push(v);
             }

@@ -3,49 +3,53 @@
 //! [`PixelEngine`] is what a [`Board`](crate::Board) calls once it has validated a command and
 //! charged its cycles: the engines only change pixel state, they never decide time. Both keep the
 //! one-bit registers (enable and flags) the same way, as bit-planes in [`Registers`], because a
-//! one-bit register has no word form to differ in; they differ in pixel memory and arithmetic:
+//! one-bit register has no integer form to differ in; they differ in pixel memory and arithmetic:
 //!
-//! - [`bit::BitEngine`] (`bit`): pixel memory as 208 bit-planes (one u64 holds one bit of 64
-//!   pixels); every multi-bit operation runs micro-cycle by micro-cycle through serial adders with
-//!   their carries, and QEE results arrive from the tree's streams one bit-plane per cycle.
-//! - [`word::WordEngine`] (`word`): pixel memory as per-pixel integers; the same semantics by
-//!   integer arithmetic.
+//! - [`bit::BitEngine`] (`bit`): pixel memory as 208 bit-planes (one u64 holds one bit of a
+//!   group's 64 pixels); every multi-bit operation runs micro-cycle by micro-cycle through serial
+//!   adders with their carries, and QEE results arrive from the tree's streams one bit-plane per
+//!   cycle.
+//! - [`integer::IntegerEngine`] (`integer`): pixel memory as per-pixel integers; the same
+//!   semantics by integer arithmetic.
 //!
-//! Both skip groups of 64 pixels that a command cannot change (every pixel disabled, for a gated
-//! write): that is a host-side shortcut with no effect on any result, shared by both levels through
-//! [`Registers::active_words`].
+//! Both engines work a *group* at a time: 64 consecutive pixels of one array row (columns 64k to
+//! 64k + 63), numbered row-major ([`Geometry`]); in a bit-plane, one u64 holds one bit of each
+//! pixel of a group. A group is the host's unit of work, with no counterpart on the board. Both
+//! engines skip the groups a command cannot change (every pixel disabled, for a gated write): a
+//! shortcut with no effect on any result, shared by both levels through
+//! [`Registers::active_groups`].
 
 pub mod bit;
-pub mod word;
+pub mod integer;
 
 use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
 use crate::qee::{Streams, Window};
 
-/// The shape of the array in 64-pixel words: pixel (px, py) is bit px % 64 of word
-/// py * words_per_row + px / 64.
+/// The shape of the array in 64-pixel groups: pixel (px, py) is bit px % 64 of group
+/// py * groups_per_row + px / 64.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Geometry {
     pub width: usize,
     pub height: usize,
-    pub words_per_row: usize,
-    pub words: usize,
+    pub groups_per_row: usize,
+    pub groups: usize,
 }
 
 impl Geometry {
     pub fn new(width: u32, height: u32) -> Geometry {
-        let words_per_row = (width as usize) / 64;
+        let groups_per_row = (width as usize) / 64;
         Geometry {
             width: width as usize,
             height: height as usize,
-            words_per_row,
-            words: words_per_row * height as usize,
+            groups_per_row,
+            groups: groups_per_row * height as usize,
         }
     }
 
-    /// Row and first column of word `w`.
+    /// Row and first column of group `g`.
     #[inline]
-    pub fn word_origin(&self, w: usize) -> (usize, usize) {
-        (w / self.words_per_row, (w % self.words_per_row) * 64)
+    pub fn group_origin(&self, g: usize) -> (usize, usize) {
+        (g / self.groups_per_row, (g % self.groups_per_row) * 64)
     }
 }
 
@@ -61,49 +65,49 @@ impl Registers {
     /// defines it so that runs are reproducible), all flags 0.
     pub fn new(geometry: Geometry, flag_count: usize) -> Registers {
         Registers {
-            enable: vec![u64::MAX; geometry.words],
-            flags: vec![vec![0; geometry.words]; flag_count],
+            enable: vec![u64::MAX; geometry.groups],
+            flags: vec![vec![0; geometry.groups]; flag_count],
         }
     }
 
     #[inline]
-    pub fn get(&self, b: Bit, w: usize) -> u64 {
+    pub fn get(&self, b: Bit, g: usize) -> u64 {
         match b {
-            Bit::Enable => self.enable[w],
-            Bit::Flag(i) => self.flags[i as usize][w],
+            Bit::Enable => self.enable[g],
+            Bit::Flag(i) => self.flags[i as usize][g],
         }
     }
 
-    /// `dst := combine(dst, value)` for the 64 pixels of word `w`, gated by enable unless `dst` is
+    /// `dst := combine(dst, value)` for the 64 pixels of group `g`, gated by enable unless `dst` is
     /// the enable register itself.
     #[inline]
-    pub fn combine(&mut self, dst: Bit, w: usize, value: u64, combine: LogicOp) {
+    pub fn combine(&mut self, dst: Bit, g: usize, value: u64, combine: LogicOp) {
         match dst {
-            Bit::Enable => self.enable[w] = combine.apply(self.enable[w], value),
+            Bit::Enable => self.enable[g] = combine.apply(self.enable[g], value),
             Bit::Flag(i) => {
-                let en = self.enable[w];
-                let old = self.flags[i as usize][w];
-                self.flags[i as usize][w] = (old & !en) | (combine.apply(old, value) & en);
+                let en = self.enable[g];
+                let old = self.flags[i as usize][g];
+                self.flags[i as usize][g] = (old & !en) | (combine.apply(old, value) & en);
             }
         }
     }
 
     /// `dst := op(a, b)`: one ALU step on every pixel.
     pub fn logic(&mut self, dst: Bit, a: Bit, b: Bit, op: LogicOp) {
-        for w in 0..self.enable.len() {
-            let v = op.apply(self.get(a, w), self.get(b, w));
-            self.combine(dst, w, v, LogicOp::B);
+        for g in 0..self.enable.len() {
+            let v = op.apply(self.get(a, g), self.get(b, g));
+            self.combine(dst, g, v, LogicOp::B);
         }
     }
 
-    /// The words a command can change: where some pixel is enabled, when its writes are gated
-    /// (memory and flags) or when it combines into enable with an op that keeps 0 at 0; every word
+    /// The groups a command can change: where some pixel is enabled, when its writes are gated
+    /// (memory and flags) or when it combines into enable with an op that keeps 0 at 0; every group
     /// otherwise.
-    pub fn active_words(&self, enable_write: Option<LogicOp>) -> Vec<u32> {
+    pub fn active_groups(&self, enable_write: Option<LogicOp>) -> Vec<u32> {
         match enable_write {
             Some(op) if !op.keeps_zero() => (0..self.enable.len() as u32).collect(),
             _ => (0..self.enable.len() as u32)
-                .filter(|&w| self.enable[w as usize] != 0)
+                .filter(|&g| self.enable[g as usize] != 0)
                 .collect(),
         }
     }
@@ -142,7 +146,7 @@ pub trait PixelEngine {
     fn add_sub(&mut self, dst: Field, a: Field, b: Field, subtract: bool, active: &[u32]);
     fn compare(&mut self, a: Field, b: Field, cmp: Cmp, dst: Bit, combine: LogicOp, active: &[u32]);
     fn mul_const(&mut self, dst: Field, src: Field, k: i64, k_bits: u32, active: &[u32]);
-    /// The field of every pixel as bit-planes (plane-major, `field.bits * words` words).
+    /// The field of every pixel as bit-planes (plane-major, `field.bits * groups` u64s).
     fn read_planes(&self, field: Field) -> Vec<u64>;
     /// Overwrite the field of every pixel (not gated) from bit-planes.
     fn write_planes(&mut self, field: Field, planes: &[u64]);

@@ -1,24 +1,25 @@
-//! The `word` fidelity level: pixel memory as per-pixel integers, operations as integer arithmetic
-//! with exactly the semantics of the bit-serial level (proven equal by property tests).
+//! The `integer` fidelity level: pixel memory as per-pixel integers, operations as integer
+//! arithmetic with exactly the semantics of the bit-serial level (proven equal by property tests).
 //!
-//! Memory is stored as lanes of 64 bits: lane k holds bits 64k .. 64k + 63 of every pixel
-//! (structure of arrays, so a field's loop walks one or two contiguous vectors).
+//! A pixel's memory is one integer of `memory_bits` bits, stored as 64-bit limbs: limb k holds
+//! bits 64k .. 64k + 63 of every pixel (structure of arrays, so a field's loop walks one or two
+//! contiguous vectors).
 
 use super::{Geometry, PixelEngine, QeeSink, Registers, extend, value_of};
 use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
 use crate::qee::{Streams, Window, mask};
 
 /// Per-pixel integer pixel memory and the shared one-bit registers.
-pub struct WordEngine {
+pub struct IntegerEngine {
     geometry: Geometry,
-    lanes: Vec<Vec<u64>>,
+    limbs: Vec<Vec<u64>>,
     regs: Registers,
 }
 
-/// Where a field's bits sit in the lanes.
+/// Where a field's bits sit in the limbs.
 #[derive(Clone, Copy)]
 struct Access {
-    lane: usize,
+    limb: usize,
     shift: u32,
     bits: u32,
     mask: u64,
@@ -27,7 +28,7 @@ struct Access {
 impl Access {
     fn of(f: Field) -> Access {
         Access {
-            lane: (f.offset / 64) as usize,
+            limb: (f.offset / 64) as usize,
             shift: f.offset % 64,
             bits: f.bits,
             mask: mask(f.bits),
@@ -40,21 +41,21 @@ impl Access {
     }
 }
 
-impl WordEngine {
-    pub fn new(geometry: Geometry, memory_bits: u32, flag_count: usize) -> WordEngine {
-        let lanes = memory_bits.div_ceil(64) as usize;
-        WordEngine {
+impl IntegerEngine {
+    pub fn new(geometry: Geometry, memory_bits: u32, flag_count: usize) -> IntegerEngine {
+        let limbs = memory_bits.div_ceil(64) as usize;
+        IntegerEngine {
             geometry,
-            lanes: vec![vec![0; geometry.words * 64]; lanes],
+            limbs: vec![vec![0; geometry.groups * 64]; limbs],
             regs: Registers::new(geometry, flag_count),
         }
     }
 
     #[inline]
     fn get(&self, a: Access, p: usize) -> u64 {
-        let lo = self.lanes[a.lane][p] >> a.shift;
+        let lo = self.limbs[a.limb][p] >> a.shift;
         if a.straddles() {
-            (lo | (self.lanes[a.lane + 1][p] << (64 - a.shift))) & a.mask
+            (lo | (self.limbs[a.limb + 1][p] << (64 - a.shift))) & a.mask
         } else {
             lo & a.mask
         }
@@ -63,26 +64,26 @@ impl WordEngine {
     #[inline]
     fn set(&mut self, a: Access, p: usize, v: u64) {
         let v = v & a.mask;
-        let lane = &mut self.lanes[a.lane][p];
-        *lane = (*lane & !(a.mask << a.shift)) | (v << a.shift);
+        let limb = &mut self.limbs[a.limb][p];
+        *limb = (*limb & !(a.mask << a.shift)) | (v << a.shift);
         if a.straddles() {
             let hi_bits = a.shift + a.bits - 64;
             let hi_mask = mask(hi_bits);
-            let lane = &mut self.lanes[a.lane + 1][p];
-            *lane = (*lane & !hi_mask) | (v >> (64 - a.shift));
+            let limb = &mut self.limbs[a.limb + 1][p];
+            *limb = (*limb & !hi_mask) | (v >> (64 - a.shift));
         }
     }
 
-    /// Apply `f(pixel) -> new raw value` to a field at the enabled pixels of the active words.
+    /// Apply `f(pixel) -> new raw value` to a field at the enabled pixels of the active groups.
     #[inline]
     fn update(&mut self, dst: Field, active: &[u32], mut f: impl FnMut(&Self, usize) -> u64) {
         let a = Access::of(dst);
-        for &w in active {
-            let w = w as usize;
-            let en = self.regs.enable[w];
+        for &g in active {
+            let g = g as usize;
+            let en = self.regs.enable[g];
             for i in 0..64 {
                 if (en >> i) & 1 != 0 {
-                    let p = w * 64 + i;
+                    let p = g * 64 + i;
                     let v = f(self, p);
                     self.set(a, p, v);
                 }
@@ -90,7 +91,7 @@ impl WordEngine {
         }
     }
 
-    /// Compute one result bit per pixel of the active words and combine it into `dst`.
+    /// Compute one result bit per pixel of the active groups and combine it into `dst`.
     #[inline]
     fn combine_bits(
         &mut self,
@@ -99,20 +100,20 @@ impl WordEngine {
         active: &[u32],
         mut f: impl FnMut(&Self, usize) -> bool,
     ) {
-        for &w in active {
-            let w = w as usize;
-            let mut word = 0u64;
+        for &g in active {
+            let g = g as usize;
+            let mut result = 0u64;
             for i in 0..64 {
-                word |= (f(self, w * 64 + i) as u64) << i;
+                result |= (f(self, g * 64 + i) as u64) << i;
             }
-            self.regs.combine(dst, w, word, combine);
+            self.regs.combine(dst, g, result, combine);
         }
     }
 
-    /// The window of the QEE's value at the 64 pixels of word `w`: V = X(x) + Y(y) + (E y) x.
+    /// The window of the QEE's value at the 64 pixels of group `g`: V = X(x) + Y(y) + (E y) x.
     #[inline]
-    fn window_values(&self, s: &Streams, window: Window, w: usize, out: &mut [u64; 64]) {
-        let (py, px0) = self.geometry.word_origin(w);
+    fn window_values(&self, s: &Streams, window: Window, g: usize, out: &mut [u64; 64]) {
+        let (py, px0) = self.geometry.group_origin(g);
         let col = &s.col[px0..px0 + 64];
         let row = s.row[py];
         let (shift, m) = (window.shift, mask(window.bits));
@@ -133,7 +134,7 @@ impl WordEngine {
 /// two pieces, and on a monotone piece whose window cannot wrap the pixels with W >= 0 form one
 /// prefix or suffix, found by binary search on exact values. A piece whose window might wrap falls
 /// back to evaluating every pixel. Exact: the property tests compare it with the bit level.
-impl WordEngine {
+impl IntegerEngine {
     fn sign_test(
         &mut self,
         s: &Streams,
@@ -142,15 +143,15 @@ impl WordEngine {
         combine: LogicOp,
         active: &[u32],
     ) {
-        let wpr = self.geometry.words_per_row;
-        let mut row_bits = vec![0u64; wpr];
+        let gpr = self.geometry.groups_per_row;
+        let mut row_bits = vec![0u64; gpr];
         let mut i = 0;
         while i < active.len() {
-            let py = active[i] as usize / wpr;
+            let py = active[i] as usize / gpr;
             sign_row(s, window, py, self.geometry.width, &mut row_bits);
-            while i < active.len() && active[i] as usize / wpr == py {
-                let w = active[i] as usize;
-                self.regs.combine(dst, w, row_bits[w % wpr], combine);
+            while i < active.len() && active[i] as usize / gpr == py {
+                let g = active[i] as usize;
+                self.regs.combine(dst, g, row_bits[g % gpr], combine);
                 i += 1;
             }
         }
@@ -165,12 +166,12 @@ fn fits(v: i64, window: Window) -> bool {
     -half <= q && q < half
 }
 
-/// Set bits `lo ..= hi` of a row's bit words, a word at a time.
+/// Set bits `lo ..= hi` of a row (one u64 per group), a group at a time.
 fn set_span(out: &mut [u64], lo: usize, hi: usize) {
-    for (w, word) in out.iter_mut().enumerate().take(hi / 64 + 1).skip(lo / 64) {
-        let first = lo.max(w * 64) - w * 64;
-        let last = hi.min(w * 64 + 63) - w * 64;
-        *word |= mask(last as u32 + 1) & !mask(first as u32);
+    for (g, group) in out.iter_mut().enumerate().take(hi / 64 + 1).skip(lo / 64) {
+        let first = lo.max(g * 64) - g * 64;
+        let last = hi.min(g * 64 + 63) - g * 64;
+        *group |= mask(last as u32 + 1) & !mask(first as u32);
     }
 }
 
@@ -238,7 +239,7 @@ fn sign_row(s: &Streams, window: Window, py: usize, width: usize, out: &mut [u64
     }
 }
 
-impl PixelEngine for WordEngine {
+impl PixelEngine for IntegerEngine {
     fn registers(&self) -> &Registers {
         &self.regs
     }
@@ -252,11 +253,11 @@ impl PixelEngine for WordEngine {
             return self.sign_test(s, window, dst, combine, active);
         }
         let mut cut = [0u64; 64];
-        for &w in active {
-            let w = w as usize;
-            self.window_values(s, window, w, &mut cut);
-            let base = w * 64;
-            let en = self.regs.enable[w];
+        for &g in active {
+            let g = g as usize;
+            self.window_values(s, window, g, &mut cut);
+            let base = g * 64;
+            let en = self.regs.enable[g];
             match sink {
                 QeeSink::Sign { .. } => unreachable!("sign tests take the span path"),
                 QeeSink::Store { dst } => {
@@ -274,13 +275,13 @@ impl PixelEngine for WordEngine {
                     combine,
                 } => {
                     let a = Access::of(field);
-                    let mut word = 0u64;
+                    let mut result = 0u64;
                     for (i, &c) in cut.iter().enumerate() {
                         let lhs = value_of(c, field.bits, field.signed);
                         let rhs = value_of(self.get(a, base + i), field.bits, field.signed);
-                        word |= (cmp.holds(lhs, rhs) as u64) << i;
+                        result |= (cmp.holds(lhs, rhs) as u64) << i;
                     }
-                    self.regs.combine(dst, w, word, combine);
+                    self.regs.combine(dst, g, result, combine);
                 }
                 QeeSink::Add { dst } => {
                     let a = Access::of(dst);
@@ -346,13 +347,13 @@ impl PixelEngine for WordEngine {
 
     fn read_planes(&self, field: Field) -> Vec<u64> {
         let a = Access::of(field);
-        let words = self.geometry.words;
-        let mut planes = vec![0u64; field.bits as usize * words];
-        for w in 0..words {
+        let groups = self.geometry.groups;
+        let mut planes = vec![0u64; field.bits as usize * groups];
+        for g in 0..groups {
             for i in 0..64 {
-                let v = self.get(a, w * 64 + i);
+                let v = self.get(a, g * 64 + i);
                 for k in 0..field.bits as usize {
-                    planes[k * words + w] |= ((v >> k) & 1) << i;
+                    planes[k * groups + g] |= ((v >> k) & 1) << i;
                 }
             }
         }
@@ -361,25 +362,25 @@ impl PixelEngine for WordEngine {
 
     fn write_planes(&mut self, field: Field, planes: &[u64]) {
         let a = Access::of(field);
-        let words = self.geometry.words;
-        for w in 0..words {
+        let groups = self.geometry.groups;
+        for g in 0..groups {
             for i in 0..64 {
                 let mut v = 0u64;
                 for k in 0..field.bits as usize {
-                    v |= ((planes[k * words + w] >> i) & 1) << k;
+                    v |= ((planes[k * groups + g] >> i) & 1) << k;
                 }
-                self.set(a, w * 64 + i, v);
+                self.set(a, g * 64 + i, v);
             }
         }
     }
 
     fn write_values(&mut self, field: Field, rect: Rect, values: &[u64]) {
         let a = Access::of(field);
-        let g = self.geometry;
+        let per_row = self.geometry.groups_per_row;
         let mut it = values.iter();
         for py in rect.y as usize..(rect.y + rect.height) as usize {
             for px in rect.x as usize..(rect.x + rect.width) as usize {
-                let p = (py * g.words_per_row + px / 64) * 64 + px % 64;
+                let p = (py * per_row + px / 64) * 64 + px % 64;
                 self.set(a, p, *it.next().expect("validated length"));
             }
         }
@@ -387,11 +388,11 @@ impl PixelEngine for WordEngine {
 
     fn read_values(&self, field: Field, rect: Rect) -> Vec<u64> {
         let a = Access::of(field);
-        let g = self.geometry;
+        let per_row = self.geometry.groups_per_row;
         let mut out = Vec::with_capacity((rect.width * rect.height) as usize);
         for py in rect.y as usize..(rect.y + rect.height) as usize {
             for px in rect.x as usize..(rect.x + rect.width) as usize {
-                let p = (py * g.words_per_row + px / 64) * 64 + px % 64;
+                let p = (py * per_row + px / 64) * 64 + px % 64;
                 out.push(self.get(a, p));
             }
         }
