@@ -21,7 +21,7 @@ use crate::config_cmd;
 /// Options of `pxpl5 bench renderer`.
 #[derive(Args, Clone, Debug)]
 pub struct RendererArgs {
-    /// Fidelity level: bit (every micro-cycle on bit-planes), word (per-pixel integers), or all.
+    /// Fidelity level: bit (every micro-cycle on bit-planes), integer (per-pixel integers), or all.
     #[arg(long, value_enum, default_value_t = BenchFidelity::All)]
     pub fidelity: BenchFidelity,
     /// Machine config (RON); default: the embedded seed machine.
