@@ -99,10 +99,11 @@ enum ConfigCommand {
 
 #[derive(Subcommand)]
 enum BenchCommand {
-    /// Run the hemisphere command mix (per polygon: per edge a linear and a quadratic sign test
-    /// and the enable logic, then a depth compare-and-store and an ID store) on one full Renderer
-    /// board and print its Renderer cycles, a digest of pixel memory, host seconds and simulated
-    /// Renderer cycles per host second. Every fidelity level prints the same cycles and digest.
+    /// Run the radiosity program's own Renderer command stream (every receiver of the first
+    /// Cornell-box shots, hemisphere and hemicube, with each view's set-up, completion probes and
+    /// ID readbacks) on one full Renderer board and print its Renderer cycles, a digest of pixel
+    /// memory, host seconds and simulated Renderer cycles per host second. Every fidelity level
+    /// prints the same cycles and digest.
     Renderer(bench::RendererArgs),
 }
 

@@ -3,9 +3,9 @@
 //! goldens, so that what is timed is what the program sends.
 //!
 //! For each shot, every view of the shooter (the hemisphere, or the hemicube's five faces) is
-//! played on one board in the order the machine runs it: the view's set-up and GP 0's fence, every
-//! receiver's commands (all patches, in patch order, each in the shooter's frame), one fence per
-//! GP, then the ID readback in one row band per GP. The commands are those
+//! played on one board in the order the machine runs it: the view's set-up and GP 0's completion
+//! probe, every receiver's commands (all patches, in patch order, each in the shooter's frame),
+//! one completion probe per GP, then the ID readback in one row band per GP. The commands are those
 //! [`crate::shot::shoot`] sends (the same `View` methods make them); only the interleaving of the
 //! GPs' batches on a board, which the machine's timing decides, is replaced by patch order.
 //!
@@ -107,7 +107,7 @@ pub fn cornell_stream(
         description: format!(
             "{} of the Cornell box ({} patches of {PATCH_SIZE} mm), {} pixels, shots from \
              patches {:?} (the first of progressive refinement with exact form factors): each \
-             view's set-up, every receiver's commands, {gps} fences and {gps} ID readback bands",
+             view's set-up, every receiver's commands, {gps} completion probes and {gps} ID readback bands",
             opts.method.name(),
             patches.len(),
             opts.resolution,
