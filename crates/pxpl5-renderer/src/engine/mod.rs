@@ -204,13 +204,10 @@ mod tests {
     #[test]
     #[allow(clippy::needless_range_loop)] // (i, j) index a matrix both ways
     fn transpose_matches_the_naive_one() {
+        let mut rng = pxpl5_geom::rng::Lcg::new(0x9E37_79B9_7F4A_7C15);
         let mut m = [0u64; 64];
-        let mut x = 0x9E37_79B9_7F4A_7C15u64;
         for v in m.iter_mut() {
-            x = x
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            *v = x;
+            *v = rng.next_u64();
         }
         let orig = m;
         transpose64(&mut m);
