@@ -26,6 +26,19 @@ pub(crate) struct Route {
 pub(crate) struct Outgoing {
     pub to: Unit,
     pub payload: Payload,
+    /// Its size in ring words, computed once at the first offer (a waiting sender is offered
+    /// again at every instant, and counting a command list's words is not free).
+    pub words: Option<u32>,
+}
+
+impl Outgoing {
+    pub fn new(to: Unit, payload: Payload) -> Outgoing {
+        Outgoing {
+            to,
+            payload,
+            words: None,
+        }
+    }
 }
 
 /// A message on the ring: what the ring does not carry for us (it moves only word counts).

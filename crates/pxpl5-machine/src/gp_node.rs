@@ -94,7 +94,7 @@ impl GpNode {
             Some(Request::Compute(c)) => GpStep::Busy(self.busy(now, c, None)),
             Some(Request::Send(to, payload)) => {
                 let c = Cycles(costs.message_send);
-                GpStep::Busy(self.busy(now, c, Some(Outgoing { to, payload })))
+                GpStep::Busy(self.busy(now, c, Some(Outgoing::new(to, payload))))
             }
             Some(Request::Recv) => {
                 if self.receive() {

@@ -26,7 +26,7 @@ use pxpl5_config::MachineConfig;
 use pxpl5_ring::{MessageId, NodeId, Ring, RingError};
 use pxpl5_sim::{ClockDomain, ComponentId, EventQueue, Priority, Tick};
 
-use crate::delivery::{Arrival, Delivery, Outgoing, Route};
+use crate::delivery::{Arrival, Delivery, Route};
 use crate::frame_buffer::FrameBufferImage;
 use crate::gp::{Gp, Payload, Program, Shared, Unit};
 use crate::gp_node::{GpNode, GpState, GpStep};
@@ -225,9 +225,20 @@ impl Machine {
                 progress |= self.gp_run(g as u32)?;
             }
             for g in 0..self.gps.len() {
-                if let GpState::BlockedSend(out) = self.gps[g].state.clone()
-                    && self.try_send(Unit::Gp(g as u32), &out)?
-                {
+                let GpState::BlockedSend(out) = &mut self.gps[g].state else {
+                    continue;
+                };
+                let to = out.to;
+                let words = *out
+                    .words
+                    .get_or_insert_with(|| ring_words(&self.cfg, &out.payload));
+                if let Some(taken) = self.offer(Unit::Gp(g as u32), to, words)? {
+                    let GpState::BlockedSend(out) =
+                        std::mem::replace(&mut self.gps[g].state, GpState::Runnable)
+                    else {
+                        unreachable!("GP {g} was blocked on a send a moment ago")
+                    };
+                    self.delivery.sent(taken.0, taken.1, out.payload);
                     self.gps[g].sent();
                     progress = true;
                 }
@@ -270,39 +281,27 @@ impl Machine {
         self.events.schedule(at, e.priority(), e.component(), e);
     }
 
-    /// Put a message on the ring; false if the sender's output queue is full.
-    fn try_send(&mut self, from: Unit, out: &Outgoing) -> Result<bool, RunError> {
-        let to = out.to;
+    /// Offer the ring a message of `words` ring words from `from` to `to`: its id and route if
+    /// the sender's output queue took it (the caller then hands the payload to delivery), `None`
+    /// if the queue is full. O(1): a sender waiting for room is offered again at every instant,
+    /// and nothing is copied until the ring takes the message.
+    fn offer(
+        &mut self,
+        from: Unit,
+        to: Unit,
+        words: u32,
+    ) -> Result<Option<(MessageId, Route)>, RunError> {
         let (Some(src), Some(dst)) = (self.positions.get(&from), self.positions.get(&to)) else {
             return Err(RunError::NoSuchUnit { from, to });
         };
         let (src, dst) = (*src, *dst);
-        let words = self.payload_words(&out.payload);
         let route = Route { from, to };
         let seq = self.delivery.next_seq(route);
         match self.ring.send(self.now, src, dst, words, seq) {
-            Ok(id) => {
-                self.delivery.sent(id, route, out.payload.clone());
-                Ok(true)
-            }
-            Err(RingError::OutputFull { .. }) => Ok(false),
+            Ok(id) => Ok(Some((id, route))),
+            Err(RingError::OutputFull { .. }) => Ok(None),
             Err(error) => Err(RunError::Ring { unit: from, error }),
         }
-    }
-
-    /// Ring words of a payload (headers are the ring's business).
-    fn payload_words(&self, p: &Payload) -> u32 {
-        let coefficient_bits = self.cfg.renderer.qee.coefficient_format.total_bits();
-        let word_bits = self.cfg.ring.word_bits;
-        match p {
-            Payload::Commands(cs) => cs
-                .iter()
-                .map(|c| c.words(coefficient_bits, word_bits))
-                .sum(),
-            Payload::Pixels { words, .. } => words.len() as u32,
-            Payload::Data { words, .. } => *words,
-        }
-        .max(1)
     }
 
     /// A message arrived: hand it (and any held successors) to the receiver in send order.
@@ -366,12 +365,18 @@ impl Machine {
             return Ok(false);
         }
         // Readbacks waiting for the ring hold the Renderer (its output port is busy).
-        while let Some(out) = self.renderers[r as usize].next_outgoing().cloned() {
-            if self.try_send(Unit::Renderer(r), &out)? {
-                self.renderers[r as usize].outgoing_sent();
-            } else {
+        while let Some(out) = self.renderers[r as usize].next_outgoing() {
+            let to = out.to;
+            let words = *out
+                .words
+                .get_or_insert_with(|| ring_words(&self.cfg, &out.payload));
+            let Some((id, route)) = self.offer(Unit::Renderer(r), to, words)? else {
                 return Ok(false);
-            }
+            };
+            let out = self.renderers[r as usize]
+                .outgoing_sent()
+                .expect("the outgoing message offered a moment ago");
+            self.delivery.sent(id, route, out.payload);
         }
         let Some(started) = self.renderers[r as usize].start_next(self.now)? else {
             return Ok(false);
@@ -431,4 +436,19 @@ impl Machine {
             recorder,
         }
     }
+}
+
+/// Ring words of a payload (headers are the ring's business), at least 1.
+fn ring_words(cfg: &MachineConfig, p: &Payload) -> u32 {
+    let coefficient_bits = cfg.renderer.qee.coefficient_format.total_bits();
+    let word_bits = cfg.ring.word_bits;
+    match p {
+        Payload::Commands(cs) => cs
+            .iter()
+            .map(|c| c.words(coefficient_bits, word_bits))
+            .sum(),
+        Payload::Pixels { words, .. } => words.len() as u32,
+        Payload::Data { words, .. } => *words,
+    }
+    .max(1)
 }

@@ -113,13 +113,13 @@ impl RendererNode {
     }
 
     /// The oldest readback message waiting for the ring.
-    pub fn next_outgoing(&self) -> Option<&Outgoing> {
-        self.outbox.front()
+    pub fn next_outgoing(&mut self) -> Option<&mut Outgoing> {
+        self.outbox.front_mut()
     }
 
-    /// The ring took [`RendererNode::next_outgoing`].
-    pub fn outgoing_sent(&mut self) {
-        self.outbox.pop_front();
+    /// The ring took [`RendererNode::next_outgoing`]: hand it over.
+    pub fn outgoing_sent(&mut self) -> Option<Outgoing> {
+        self.outbox.pop_front()
     }
 
     /// Start the next queued command at `now` (at the next Renderer clock edge, or later if the
@@ -147,16 +147,15 @@ impl RendererNode {
             // The board packed the messages; they travel as they are, and whoever receives one
             // unpacks it.
             let to = Unit::decode(rb.dest);
-            self.outbox
-                .extend(rb.messages.into_iter().map(|m| Outgoing {
-                    to,
-                    payload: Payload::Pixels {
-                        tag: rb.tag,
-                        rect: m.rect,
-                        bits: rb.bits,
-                        words: m.words,
-                    },
-                }));
+            self.outbox.extend(rb.messages.into_iter().map(|m| {
+                let payload = Payload::Pixels {
+                    tag: rb.tag,
+                    rect: m.rect,
+                    bits: rb.bits,
+                    words: m.words,
+                };
+                Outgoing::new(to, payload)
+            }));
         }
         self.running = Some(Running {
             message: q.message,
