@@ -9,7 +9,9 @@
 //! which then orders the readbacks. Views are processed in rounds of at most one view per
 //! Renderer.
 
+use std::cell::RefCell;
 use std::collections::BTreeMap;
+use std::rc::Rc;
 
 use pxpl5_config::FixedFormat;
 use pxpl5_geom::DVec3;
@@ -22,7 +24,7 @@ use crate::views::{
 };
 
 /// How form factors are computed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Method {
     Hemisphere,
     Hemicube,
@@ -88,7 +90,7 @@ pub(crate) struct View {
     width: u32,
     rows: u32,
     /// Delta form factor of each used pixel, row-major over (rows x width).
-    delta: Vec<f64>,
+    delta: Rc<[f64]>,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -190,12 +192,39 @@ impl View {
     }
 }
 
-/// The views of `opts` on a machine with `renderers` boards of `side` pixels.
+/// What the views of a shot depend on: (method, resolution, exact delta rule, Renderers, side).
+type ViewsKey = (Method, u32, bool, u32, u32);
+
+thread_local! {
+    /// The views of every key asked for so far on this host thread. Every GP of every shot asks
+    /// for the same views, and a hemisphere's delta form factors take 64 x 64 samples per rim
+    /// pixel: computed once, shared (a pure function of the key, so results are unchanged).
+    static VIEWS: RefCell<BTreeMap<ViewsKey, Vec<View>>> = const { RefCell::new(BTreeMap::new()) };
+}
+
+/// The views of `opts` on a machine with `renderers` boards of `side` pixels (computed once per
+/// key and host thread, see `VIEWS`).
 pub(crate) fn views(
     opts: &FfOptions,
     renderers: u32,
     side: u32,
 ) -> Result<Vec<View>, ProgramError> {
+    let key = (
+        opts.method,
+        opts.resolution,
+        opts.exact_delta,
+        renderers,
+        side,
+    );
+    if let Some(v) = VIEWS.with(|m| m.borrow().get(&key).cloned()) {
+        return Ok(v);
+    }
+    let v = compute_views(opts, renderers, side)?;
+    VIEWS.with(|m| m.borrow_mut().insert(key, v.clone()));
+    Ok(v)
+}
+
+fn compute_views(opts: &FfOptions, renderers: u32, side: u32) -> Result<Vec<View>, ProgramError> {
     let n = opts.resolution;
     let mut out = Vec::new();
     match opts.method {
@@ -227,7 +256,7 @@ pub(crate) fn views(
                         origin: (x0, y0),
                         width: w,
                         rows: h,
-                        delta,
+                        delta: delta.into(),
                     });
                 }
             }
@@ -254,7 +283,7 @@ pub(crate) fn views(
                     origin: (0, face.row0(n)),
                     width: n,
                     rows: face.rows(n),
-                    delta: delta.iter().map(|d| d / total).collect(),
+                    delta: delta.iter().map(|d| d / total).collect::<Vec<_>>().into(),
                 });
             }
         }
