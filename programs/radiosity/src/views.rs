@@ -70,9 +70,11 @@ pub enum EdgeRule {
     /// docs/radiosity.md section 3: the edge plane's normal points into the polygon; by the
     /// sign of C: C > 0: L >= 0 or Q <= 0; C < 0: L >= 0 and Q >= 0; C = 0: L >= 0.
     SignOfC,
-    /// TR89-002 as written: the normal chosen with C < 0, POS = L >= 0, INSIDE = Q <= 0, and a
-    /// third vertex (u0, v0) picks CASE 1 (L0 > 0 and Q0 > 0: disable where INSIDE or not POS)
-    /// or CASE 2 (disable where not INSIDE and POS).
+    /// TR89-002's rule: the normal chosen with C < 0, POS = L >= 0, INSIDE = Q <= 0, and a
+    /// third vertex picks CASE 1 (as written: L0 > 0 and Q0 > 0 at its disk point; disable where
+    /// INSIDE or not POS) or CASE 2 (disable where not INSIDE and POS). The case is decided by the
+    /// side of the edge plane the vertex lies on, which is the seed's test for a vertex above
+    /// the horizon and stays right for one below it, where the seed's projection is ambiguous.
     Seed,
 }
 
@@ -275,12 +277,16 @@ pub fn hemisphere_polygon(
                 let q = quad(a, b, c);
                 // INSIDE = Q <= 0.
                 push_sign(&mut out, q.map(|x| -x), f.inside)?;
+                // The seed's CASE test: L0 > 0 and Q0 > 0 at the third vertex's point (u0, v0)
+                // of the disk. With C < 0 and w0 = sqrt(1 - u0^2 - v0^2), Q0 = (L0 - C w0)
+                // (L0 + C w0), so for a vertex above the horizon the test says L0 + C w0 > 0: the
+                // vertex lies on the positive side of the edge plane. A vertex below the horizon
+                // projects onto the same disk point as its mirror image above it, and the seed's
+                // test then picks the wrong case (a receiver crossing the horizon read +240% in a
+                // test); the side of the plane, taken in 3D, is the seed's test wherever it is
+                // defined and right below the horizon too.
                 let third = verts[(i + 2) % m];
-                let rho = third.length();
-                let (u0, v0) = (third.x / rho, third.y / rho);
-                let l0 = a * u0 + b * v0;
-                let q0 = (a * u0 + b * v0).powi(2) - c * c * (1.0 - u0 * u0 - v0 * v0);
-                let t = if l0 > 0.0 && q0 > 0.0 {
+                let t = if pl.dot(third) > 0.0 {
                     // CASE 1: enabled where POS and not INSIDE.
                     Command::Logic {
                         dst: f.t,

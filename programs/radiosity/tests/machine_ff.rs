@@ -466,3 +466,56 @@ fn shooting_several_patches_at_once_converges_to_the_same_solution() {
     // Four hemispheres on four Renderers at once: less simulated time per shot.
     assert!(times[1] < times[0], "per-shot time {times:?}");
 }
+
+/// A floor crossing the shooter's horizon (the shooter on a wall): edges whose third vertex lies
+/// below the horizon. The seed's CASE test projects that vertex onto the disk, where a point
+/// below the horizon looks like its mirror image above it; the rules must still agree.
+#[test]
+fn the_seed_edge_rule_agrees_on_a_floor_crossing_the_horizon() {
+    let mut rng = Lcg::new(41);
+    let mut cases: Vec<Vec<DVec3>> = [(-0.3, 1.0), (-0.6, 2.0), (-0.1, 0.5)]
+        .iter()
+        .map(|&(y, far)| {
+            vec![
+                DVec3::new(-0.5, y, -0.5),
+                DVec3::new(0.5, y, -0.5),
+                DVec3::new(0.5, y, far),
+                DVec3::new(-0.5, y, far),
+            ]
+        })
+        .collect();
+    // Tilted squares whose centres lie near the horizon, so that they cross it.
+    for _ in 0..6 {
+        let dir = DVec3::new(
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-0.1, 0.1),
+        );
+        let tilt = DVec3::new(
+            rng.range(-0.5, 0.5),
+            rng.range(-0.5, 0.5),
+            rng.range(-0.5, 0.5),
+        );
+        cases.push(square(dir.normalize(), rng.range(0.3, 0.9), tilt));
+    }
+    for floor in cases {
+        let y = floor[0].y;
+        let a = machine_ff(
+            DVec3::ZERO,
+            DVec3::Z,
+            vec![floor.clone()],
+            options(Method::Hemisphere, 128),
+        );
+        let mut o = options(Method::Hemisphere, 128);
+        o.edge_rule = EdgeRule::Seed;
+        let b = machine_ff(DVec3::ZERO, DVec3::Z, vec![floor.clone()], o);
+        let exact = point_to_polygon(DVec3::ZERO, DVec3::Z, &floor);
+        let pixel = 4.0 / (std::f64::consts::PI * 128.0 * 128.0);
+        assert!(
+            (a[0] - b[0]).abs() <= 4.0 * pixel,
+            "floor at y {y}: sign-of-C {} vs seed {} (exact {exact})",
+            a[0],
+            b[0]
+        );
+    }
+}
