@@ -315,7 +315,9 @@ impl Board {
 
     /// The pixel (or board-state) effect of a validated command that ends at cycle `end`.
     fn apply(&mut self, cmd: &Command, end: Cycles, readback: &mut Option<ReadbackStream>) {
-        let gated = self.engine.get().registers().active_groups(None);
+        // The groups a gated write can change (any enabled pixel), listed only for the commands
+        // that need them: a Logic or SetOrigin command (half a hemisphere stream) needs none.
+        let gated = |b: &Self| b.engine.get().registers().active_groups(None);
         // The QEE's streams for this board's origin and size.
         let (origin, g) = (self.origin, self.geometry);
         let streams = |expr: &crate::QeeExpr| Streams::new(expr, origin, g.width, g.height);
@@ -346,6 +348,7 @@ impl Board {
                 dst,
             } => {
                 let s = streams(expr);
+                let gated = gated(self);
                 self.engine
                     .get_mut()
                     .qee(&s, window, QeeSink::Store { dst }, &gated);
@@ -378,16 +381,27 @@ impl Board {
                 dst,
             } => {
                 let s = streams(expr);
+                let gated = gated(self);
                 self.engine
                     .get_mut()
                     .qee(&s, window, QeeSink::Add { dst }, &gated);
             }
             Command::WriteConst { dst, value } => {
+                let gated = gated(self);
                 self.engine.get_mut().write_const(dst, value, &gated)
             }
-            Command::Copy { dst, src } => self.engine.get_mut().copy(dst, src, &gated),
-            Command::Add { dst, a, b } => self.engine.get_mut().add_sub(dst, a, b, false, &gated),
-            Command::Sub { dst, a, b } => self.engine.get_mut().add_sub(dst, a, b, true, &gated),
+            Command::Copy { dst, src } => {
+                let gated = gated(self);
+                self.engine.get_mut().copy(dst, src, &gated)
+            }
+            Command::Add { dst, a, b } => {
+                let gated = gated(self);
+                self.engine.get_mut().add_sub(dst, a, b, false, &gated)
+            }
+            Command::Sub { dst, a, b } => {
+                let gated = gated(self);
+                self.engine.get_mut().add_sub(dst, a, b, true, &gated)
+            }
             Command::Compare {
                 a,
                 b,
@@ -409,7 +423,10 @@ impl Board {
                 src,
                 k,
                 k_bits,
-            } => self.engine.get_mut().mul_const(dst, src, k, k_bits, &gated),
+            } => {
+                let gated = gated(self);
+                self.engine.get_mut().mul_const(dst, src, k, k_bits, &gated)
+            }
             Command::Save { field, block } => {
                 // The data are copied at issue: the interlock keeps every later access to the
                 // field behind the transfer's end, so no command can see the difference.
