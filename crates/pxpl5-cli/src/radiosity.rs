@@ -58,6 +58,13 @@ pub struct RadiosityArgs {
     /// Hemicube: transform and clip every receiver for every face (no cheap face test).
     #[arg(long)]
     pub all_faces: bool,
+    /// Do not turn each shot's view about the shooter's normal (by default a seeded random turn
+    /// per shot keeps a hemicube's aliasing from being the same, a bias, at every shot).
+    #[arg(long)]
+    pub no_rotation: bool,
+    /// Seed of the per-shot turns (the same seed gives the same run).
+    #[arg(long, default_value_t = 1)]
+    pub rotation_seed: u64,
     /// Shoot this many patches at once, their views spread over the Renderers (1: classic
     /// progressive refinement).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
@@ -111,6 +118,7 @@ impl RadiosityArgs {
                 exact_delta: self.delta.exact(),
                 skip_faces: !self.all_faces,
                 depth: self.depth.into(),
+                rotation: (!self.no_rotation).then_some(self.rotation_seed),
             },
             shots: self.shots,
             threshold: self.threshold,

@@ -33,6 +33,17 @@ impl Lcg {
         lo + (hi - lo) * self.unit()
     }
 
+    /// A rotation (cos a, sin a) with a uniform parameter t = tan(a / 2) in [-1, 1), so a covers
+    /// [-90, 90) degrees: by the rational parametrisation ((1 - t^2) / (1 + t^2), 2 t / (1 + t^2)),
+    /// exact to rounding and the same on every host (no sin or cos, whose last bits vary
+    /// between libraries). Not uniform in angle; a view with 90-degree symmetry (a pixel grid, a
+    /// hemicube) needs only that every orientation can occur.
+    pub fn turn(&mut self) -> (f64, f64) {
+        let t = self.range(-1.0, 1.0);
+        let d = 1.0 + t * t;
+        ((1.0 - t * t) / d, 2.0 * t / d)
+    }
+
     /// An integer in 0..n (0 for n = 0) from the next state's high 31 bits (an LCG's low bits are
     /// poorly mixed), reduced mod n: for test inputs, not for statistics.
     pub fn below(&mut self, n: u64) -> u64 {
@@ -58,6 +69,8 @@ mod tests {
         let x = Lcg::new(9).range(-2.0, 3.0);
         assert_eq!(Lcg::new(1).below(1 << 31), 7_806_831_264_735_756_412 >> 33);
         assert_eq!(Lcg::new(1).below(0), 0);
+        let (c, s) = Lcg::new(3).turn();
+        assert!((c * c + s * s - 1.0).abs() < 1e-15 && c >= 0.0);
         assert!((-2.0..3.0).contains(&x));
     }
 }

@@ -158,6 +158,7 @@ impl Program for FormFactorProgram {
                 point: p,
                 normal: n,
                 scale,
+                turn: opts.turn(0),
             };
             let partial = shoot(
                 &gp,
@@ -355,10 +356,12 @@ impl Program for RadiosityProgram {
                 }
                 let shooters: Vec<Shooter> = picks
                     .iter()
-                    .map(|p| Shooter {
+                    .enumerate()
+                    .map(|(k, p)| Shooter {
                         point: patches[p.patch].centre,
                         normal: patches[p.patch].normal,
                         scale,
+                        turn: opts.turn(taken + k),
                     })
                     .collect();
 

@@ -53,6 +53,24 @@ pub struct FfOptions {
     /// Hemicube: skip faces a receiver cannot touch after a cheap test (a real implementation
     /// would); otherwise every receiver is transformed and clipped for every face.
     pub skip_faces: bool,
+    /// Turn each shot's view about the shooter's normal by a seeded random angle
+    /// (docs/radiosity.md section 1): in an axis-aligned scene an unturned hemicube's aliasing is
+    /// the same at every shot, a bias; turned, it varies and averages out. `None`: no turn.
+    pub rotation: Option<u64>,
+}
+
+impl FfOptions {
+    /// The turn of shot `shot` (0-based, counted over the whole run): the same on every GP and
+    /// every host for a seed and a shot; no turn without a seed.
+    pub fn turn(&self, shot: usize) -> (f64, f64) {
+        match self.rotation {
+            None => (1.0, 0.0),
+            Some(seed) => {
+                pxpl5_geom::rng::Lcg::new(seed ^ (shot as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15))
+                    .turn()
+            }
+        }
+    }
 }
 
 impl Default for FfOptions {
@@ -64,6 +82,7 @@ impl Default for FfOptions {
             depth: HemisphereDepth::Taylor,
             exact_delta: true,
             skip_faces: true,
+            rotation: Some(1),
         }
     }
 }
@@ -329,6 +348,8 @@ pub struct Shooter {
     pub normal: DVec3,
     /// The scene's size: frame units per scene unit are 1/scale (the same on every GP).
     pub scale: f64,
+    /// The view's turn about the normal, (cos a, sin a) ([`FfOptions::turn`]).
+    pub turn: (f64, f64),
 }
 
 /// An item buffer (the IDs of one view) as read back, for pictures: collected by the simulator
@@ -445,7 +466,8 @@ async fn transform_receivers(
 ) -> Vec<Vec<Vec<DVec3>>> {
     let mut local = Vec::new();
     for shooter in shooters {
-        let frame = ShooterFrame::new(shooter.point, shooter.normal, shooter.scale);
+        let frame =
+            ShooterFrame::new(shooter.point, shooter.normal, shooter.scale).turned(shooter.turn);
         let in_frame = gp
             .work(|cost| {
                 cost.add(

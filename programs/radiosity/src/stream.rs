@@ -81,8 +81,9 @@ pub fn cornell_stream(
     let gps = cfg.gp.count;
     let mut commands = Vec::new();
     let mut culled = 0;
-    for &i in &shooters {
-        let frame = ShooterFrame::new(patches[i].centre, patches[i].normal, scale);
+    for (shot, &i) in shooters.iter().enumerate() {
+        let frame =
+            ShooterFrame::new(patches[i].centre, patches[i].normal, scale).turned(opts.turn(shot));
         let local: Vec<Vec<_>> = patches
             .iter()
             .map(|p| p.vertices.iter().map(|&v| frame.local(v)).collect())

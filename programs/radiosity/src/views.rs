@@ -48,6 +48,16 @@ impl ShooterFrame {
         }
     }
 
+    /// The frame turned about its normal by the rotation (cos a, sin a): its tangents become
+    /// t1 cos a + t2 sin a and t2 cos a - t1 sin a.
+    pub fn turned(self, (c, s): (f64, f64)) -> ShooterFrame {
+        ShooterFrame {
+            t1: self.t1 * c + self.t2 * s,
+            t2: self.t2 * c - self.t1 * s,
+            ..self
+        }
+    }
+
     /// A scene point in the frame.
     pub fn local(&self, v: DVec3) -> DVec3 {
         let d = v - self.origin;

@@ -519,3 +519,39 @@ fn the_seed_edge_rule_agrees_on_a_floor_crossing_the_horizon() {
         );
     }
 }
+
+/// The hemicube in an axis-aligned box: unturned, its aliasing is the same at every shot (the
+/// floor seen from the light's centre reads about 1.7% low at 32 to 96 pixels); turned by a
+/// seeded random angle per shot, the errors vary in sign and their mean is far smaller.
+#[test]
+fn turning_the_hemicube_removes_its_bias_in_an_axis_aligned_box() {
+    let cornell = scenes::cornell_box();
+    let surface = |name: &str| {
+        cornell
+            .surfaces
+            .iter()
+            .find(|s| s.name == name)
+            .expect("named")
+            .clone()
+    };
+    let floor = surface("floor").points();
+    let light = surface("light").plane().expect("planar");
+    let exact = point_to_polygon(light.point, light.normal, &floor);
+    let run = |rotation| {
+        let mut o = options(Method::Hemicube, 32);
+        o.rotation = rotation;
+        machine_ff(light.point, light.normal, vec![floor.clone()], o)[0]
+    };
+    let unturned = (run(None) - exact) / exact;
+    let turned: Vec<f64> = (1..=12)
+        .map(|seed| (run(Some(seed)) - exact) / exact)
+        .collect();
+    let mean = turned.iter().sum::<f64>() / turned.len() as f64;
+    assert!(unturned.abs() > 0.01, "unturned error {unturned}");
+    assert!(
+        mean.abs() < unturned.abs() / 3.0,
+        "unturned {unturned}, turned mean {mean} ({turned:?})"
+    );
+    // Reproducible: the same seed, the same form factor.
+    assert_eq!(run(Some(5)), run(Some(5)));
+}
