@@ -22,6 +22,7 @@ use pxpl5_radiosity::shot::{FfOptions, Method};
 use crate::UserError;
 use crate::choices::{Delta, DepthArg, EdgeRuleArg, FidelityArg, FormFactorMethod, Methods};
 use crate::config_cmd;
+use crate::output::{out, outln};
 use crate::run::{TraceArgs, png_bytes, probe_writable, timed, write_atomic};
 
 /// Options of `pxpl5 radiosity`.
@@ -184,7 +185,7 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
         args.resolution,
         &runs,
     );
-    print!("{}", table(&comparison, &host_seconds));
+    out!("{}", table(&comparison, &host_seconds))?;
     write_atomic(
         &args.out.join("comparison.csv"),
         comparison_csv(&comparison).as_bytes(),
@@ -217,10 +218,10 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
         )?;
         write_atomic(&args.out.join("radiosity.png"), &png_bytes(&picture.frame)?)?;
     }
-    println!(
+    outln!(
         "wrote {}/comparison.csv, comparison.json, patches.csv, config.ron, radiosity.png",
         args.out.display()
-    );
+    )?;
     Ok(())
 }
 
@@ -373,7 +374,7 @@ pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
     let nn = normal.normalize();
     let exact = pxpl5_radiosity::exact::point_to_polygon(point, nn, &polygon);
     let Some(method) = args.method.on_machine() else {
-        println!("exact form factor: {exact:.9}");
+        outln!("exact form factor: {exact:.9}")?;
         return Ok(());
     };
     let cfg = config_cmd::load(args.config.as_deref())?;
@@ -390,7 +391,7 @@ pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
     )?;
     let (f, stats) = (measured.form_factor, &measured.stats);
     let renderer: u64 = stats.renderers.iter().map(|r| r.busy.0).sum();
-    println!(
+    outln!(
         "{} form factor: {f:.9} (exact {exact:.9}, error {:+.3}%)",
         method.name(),
         if exact > 0.0 {
@@ -398,15 +399,15 @@ pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
         } else {
             0.0
         }
-    );
-    println!(
+    )?;
+    outln!(
         "simulated: {:.3} us on {}; Renderer busy {} cycles (all boards); GP 0 busy {} cycles; ring {} payload words",
         stats.end.as_secs_f64() * 1e6,
         cfg.name,
         renderer,
         stats.gps[0].busy.0,
         stats.ring.total.payload_words
-    );
+    )?;
     Ok(())
 }
 

@@ -22,6 +22,7 @@ use pxpl5_trace::{TraceWindow, parse_time};
 use crate::UserError;
 use crate::choices::{FidelityArg, ProgramArg};
 use crate::config_cmd;
+use crate::output::{out, outln};
 
 /// Options of `pxpl5 run`.
 #[derive(Args, Clone, Debug)]
@@ -91,26 +92,26 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
     write_atomic(&args.out.join("frame.png"), &png_bytes(&result.frame)?)?;
     args.traces.write(&result.recorder, |p| p.to_path_buf())?;
 
-    print!("{}", stats.table());
+    out!("{}", stats.table())?;
     let triangles = program.scene().triangles.len();
     let seconds = stats.end.as_secs_f64();
-    println!(
+    outln!(
         "\n{triangles} triangles in {:.3} ms simulated: {:.0} triangles per simulated second \
          (the paper's design goal: 1,000,000 Phong-shaded triangles/s for the whole machine; this \
          program shades Gouraud, three linear expressions per triangle, and its time includes \
          reading every region back to the frame buffer)",
         seconds * 1e3,
         triangles as f64 / seconds
-    );
+    )?;
     let renderer_cycles: u64 = stats.renderers.iter().map(|r| r.busy.0 + r.idle.0).sum();
-    println!(
+    outln!(
         "host: {host_seconds:.3} s, {:.2} M simulated Renderer cycles per host second (all boards)",
         renderer_cycles as f64 / host_seconds / 1e6
-    );
-    println!(
+    )?;
+    outln!(
         "wrote {}/frame.png, stats.json, config.ron",
         args.out.display()
-    );
+    )?;
     Ok(())
 }
 

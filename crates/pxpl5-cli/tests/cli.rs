@@ -1,8 +1,9 @@
 //! The `pxpl5` command as a user runs it: exit codes, messages naming file, line and field, and
 //! the benchmark's agreement between fidelity levels.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
 
 fn pxpl5(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_pxpl5"))
@@ -453,4 +454,183 @@ fn logs_go_to_stderr_at_the_level_asked_and_leave_stdout_alone() {
     );
     let both = run_small_logged(&d, &["-v", "-q"], None);
     assert_eq!(both.status.code(), Some(2));
+}
+
+/// `pxpl5 ARGS` with stdout `stdout`.
+fn pxpl5_to(args: &[&str], stdout: impl Into<Stdio>) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pxpl5"))
+        .args(args)
+        .current_dir(root())
+        .stdout(stdout)
+        .output()
+        .expect("pxpl5 runs")
+}
+
+/// `pxpl5 ARGS` writing to a pipe whose reader is already closed: its first write to stdout
+/// fails with EPIPE, whatever the timing.
+fn pxpl5_closed_stdout(args: &[&str]) -> Output {
+    let (reader, writer) = std::io::pipe().expect("a pipe");
+    drop(reader);
+    pxpl5_to(args, writer)
+}
+
+/// A small radiosity run (one hemisphere shot of the Cornell box in big patches) writing to `out`.
+fn radiosity_small(out: &Path) -> Vec<String> {
+    [
+        "radiosity",
+        "--method",
+        "hemisphere",
+        "--shots",
+        "1",
+        "--patch-size",
+        "400",
+        "--resolution",
+        "16",
+        "--out",
+        out.to_str().unwrap(),
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
+fn no_panic(out: &Output) {
+    let err = text(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_ne!(out.status.code(), Some(101), "{err}");
+}
+
+#[test]
+fn a_closed_stdout_ends_quietly_with_exit_code_0() {
+    let out_d = out_dir("closed-stdout");
+    let radiosity = radiosity_small(&out_d);
+    let run_d = out_dir("closed-stdout-run");
+    let run = [
+        "run",
+        "--config",
+        "machine-configs/minimal.ron",
+        "--scene",
+        "programs/polygons/scenes/small.ron",
+        "--out",
+        run_d.to_str().unwrap(),
+    ];
+    let square = "-1,-1,1;1,-1,1;1,1,1;-1,1,1";
+    let formfactor = [
+        "formfactor",
+        "--point",
+        "0,0,0",
+        "--normal",
+        "0,0,1",
+        "--polygon",
+        square,
+    ];
+    let bench = [
+        "bench",
+        "renderer",
+        "--method",
+        "hemisphere",
+        "--fidelity",
+        "integer",
+        "--shots",
+        "1",
+        "--resolution",
+        "16",
+        "--repeat",
+        "1",
+    ];
+    let commands: Vec<Vec<&str>> = vec![
+        vec!["config", "show"],
+        vec!["config", "check", "machine-configs/minimal.ron"],
+        vec!["--help"],
+        vec!["--version"],
+        formfactor.to_vec(),
+        bench.to_vec(),
+        run.to_vec(),
+        radiosity.iter().map(String::as_str).collect(),
+    ];
+    for args in &commands {
+        let out = pxpl5_closed_stdout(args);
+        no_panic(&out);
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "{args:?}: {}",
+            text(&out.stderr)
+        );
+        assert_eq!(text(&out.stderr), "", "{args:?}: a closed pipe is quiet");
+    }
+    // Only the report is lost: the files are whole.
+    assert!(run_d.join("frame.png").exists());
+    assert!(out_d.join("radiosity.png").exists());
+
+    // A closed stdout does not hide a failed check: the verdict is the exit code.
+    let bad = temp_file("closed-bad.ron", "(name: \"bad\")");
+    let out = pxpl5_closed_stdout(&[
+        "config",
+        "check",
+        "machine-configs/minimal.ron",
+        bad.to_str().unwrap(),
+    ]);
+    no_panic(&out);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("closed-bad.ron"));
+
+    // As `pxpl5 radiosity | head -1` does it: one line read, then the reader closed.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pxpl5"))
+        .args(&radiosity)
+        .current_dir(root())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("pxpl5 runs");
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.starts_with("Progressive radiosity"), "{first}");
+    let out = child.wait_with_output().unwrap();
+    no_panic(&out);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+}
+
+#[test]
+fn a_full_stdout_is_an_error_naming_stdout() {
+    if !Path::new("/dev/full").exists() {
+        return;
+    }
+    let full = || {
+        std::fs::OpenOptions::new()
+            .write(true)
+            .open("/dev/full")
+            .unwrap()
+    };
+    let square = "-1,-1,1;1,-1,1;1,1,1;-1,1,1";
+    let out_d = out_dir("full-stdout");
+    let radiosity = radiosity_small(&out_d);
+    let commands: Vec<Vec<&str>> = vec![
+        vec!["config", "show"],
+        vec!["config", "check", "machine-configs/minimal.ron"],
+        vec!["--help"],
+        vec![
+            "formfactor",
+            "--point",
+            "0,0,0",
+            "--normal",
+            "0,0,1",
+            "--polygon",
+            square,
+        ],
+        radiosity.iter().map(String::as_str).collect(),
+    ];
+    for args in &commands {
+        let out = pxpl5_to(args, full());
+        no_panic(&out);
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{args:?}: {}",
+            text(&out.stderr)
+        );
+        let err = text(&out.stderr);
+        assert!(err.starts_with("stdout: cannot write: "), "{args:?}: {err}");
+    }
 }
