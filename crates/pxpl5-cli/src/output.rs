@@ -1,6 +1,10 @@
-//! Everything the `pxpl5` command prints goes through here: its report ([`out!`], [`outln!`]) and
-//! its messages on stderr ([`errln!`]). The tidy test forbids `println!`, `print!`, `eprintln!`
-//! and `eprint!` in this crate, which panic when their stream fails.
+//! Everything the `pxpl5` command writes goes through here: its report ([`out!`], [`outln!`]),
+//! its messages on stderr ([`errln!`]) and its files ([`dest`], [`write()`]).
+//!
+//! # Printing
+//!
+//! The tidy test forbids `println!`, `print!`, `eprintln!` and `eprint!` in this crate, which
+//! panic when their stream fails.
 //!
 //! - **A closed stdout is not an error.** When the reader of stdout stops reading (EPIPE, as in
 //!   `pxpl5 radiosity | head -1`), the rest of the report is discarded and the command ends as it
@@ -12,17 +16,41 @@
 //!   a full disk), exit code 2, as for any output the user chose that cannot be written.
 //! - **Stderr failures are ignored**: there is nowhere left to report them.
 //!
+//! - **When a file output is `-`** (stdout), stdout carries that file alone and the report goes
+//!   to stderr instead.
+//!
 //! Each print is flushed at once, so a failure surfaces at the print that caused it and nothing
 //! waits in a buffer for the process's exit, where std would drop its error.
+//!
+//! # Files
+//!
+//! An output path never loses what it points at. [`dest`] looks at the path before the command
+//! does any work, following symlinks to their end:
+//!
+//! - a regular file, or nothing yet: the file is written to a temporary file beside it (in the
+//!   same directory, so on the same file system) and renamed over it, so that it is either the
+//!   old file or the whole new one; missing parent directories are created. A symlink to a
+//!   regular file stays a symlink: the file it points to is the one replaced (with the
+//!   permissions it had).
+//! - an existing file that is not regular (a FIFO, a device such as `/dev/null`, a symlink to
+//!   one): it is opened and written through, never replaced.
+//! - a directory, a read-only file, a path under a regular file, or a directory where no file can
+//!   be created: an error naming the path, exit code 2, before any work.
+//! - `-`, for the outputs that take it (`--trace`, `--vcd`): stdout.
 
 use std::fmt;
+use std::fs;
 use std::io::{self, Write};
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use crate::UserError;
 
 /// Set once a write to stdout found the pipe closed: later writes are discarded.
 static STDOUT_CLOSED: AtomicBool = AtomicBool::new(false);
+
+/// Set when a file output goes to stdout: the report goes to stderr.
+static REPORT_TO_STDERR: AtomicBool = AtomicBool::new(false);
 
 /// Print to stdout, as `print!` does, through [`print()`].
 macro_rules! out {
@@ -50,10 +78,20 @@ macro_rules! errln {
 
 pub(crate) use {errln, out, outln};
 
-/// Write `args` to stdout and flush. A closed pipe is not an error (see the module doc); any
-/// other failure is a [`UserError`] naming stdout.
+/// Write the report's `args` to stdout and flush. A closed pipe is not an error (see the module
+/// doc); any other failure is a [`UserError`] naming stdout. When a file output goes to stdout,
+/// the report goes to stderr.
 pub fn print(args: fmt::Arguments) -> Result<(), UserError> {
+    if REPORT_TO_STDERR.load(Ordering::Relaxed) {
+        print_stderr(args);
+        return Ok(());
+    }
     write_stdout(|w| w.write_fmt(args))
+}
+
+/// Write a file's `bytes` to stdout and flush, as [`print()`] does.
+fn print_bytes(bytes: &[u8]) -> Result<(), UserError> {
+    write_stdout(|w| w.write_all(bytes))
 }
 
 /// Write `args` to stderr; a failure is ignored.
@@ -76,5 +114,167 @@ fn write_stdout(
             Ok(())
         }
         Err(e) => Err(UserError(format!("stdout: cannot write: {e}"))),
+    }
+}
+
+/// Where one output goes, decided by what its path is (see the module doc).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Dest {
+    /// `-`: stdout.
+    Stdout,
+    /// A regular file or nothing yet, at the end of the path's symlinks: written to a temporary
+    /// file beside it and renamed over it.
+    Replace(PathBuf),
+    /// An existing file that is not regular (a FIFO, a device), at the end of the path's
+    /// symlinks: opened and written, never replaced.
+    Through(PathBuf),
+}
+
+/// Decide where the output `what` (the option, e.g. `--trace`) given as `path` goes, or say, naming
+/// both, why it cannot go there. `-` is stdout when `dash_is_stdout`, and then the report goes to
+/// stderr ([`print()`]). Nothing is created: a directory's capacity to take a file is probed with a
+/// file removed at once.
+pub fn dest(what: &str, path: &Path, dash_is_stdout: bool) -> Result<Dest, UserError> {
+    if dash_is_stdout && path == Path::new("-") {
+        REPORT_TO_STDERR.store(true, Ordering::Relaxed);
+        return Ok(Dest::Stdout);
+    }
+    let bad = |problem: &str| UserError(format!("{what} {}: {problem}", path.display()));
+    let names_a_directory = path.as_os_str().to_string_lossy().ends_with('/');
+    if names_a_directory || path.file_name().is_none() {
+        return Err(bad("names a directory; a file is expected here"));
+    }
+    let end = follow_symlinks(path)
+        .map_err(|e| bad(&format!("cannot follow its symbolic links: {e}")))?;
+    let parent = || parent_dir(&end);
+    match fs::metadata(&end) {
+        Ok(m) if m.is_dir() => Err(bad("is a directory; a file is expected here")),
+        Ok(m) if m.permissions().readonly() => Err(bad("is read-only")),
+        Ok(m) if m.is_file() => {
+            check_dir(what, &parent())?;
+            Ok(Dest::Replace(end))
+        }
+        Ok(_) => Ok(Dest::Through(end)),
+        Err(e) if e.kind() == io::ErrorKind::NotFound => {
+            check_dir(what, &parent())?;
+            Ok(Dest::Replace(end))
+        }
+        Err(e) => Err(bad(&format!("cannot read what it is: {e}"))),
+    }
+}
+
+/// Check that `dir` is a directory where files can be created, or can be created as one: its
+/// nearest existing ancestor must be a directory that takes a file (a probe, removed at once).
+/// Creates nothing.
+pub fn check_dir(what: &str, dir: &Path) -> Result<(), UserError> {
+    let bad = |problem: String| UserError(format!("{what} {}: {problem}", dir.display()));
+    for ancestor in dir.ancestors() {
+        let ancestor = if ancestor.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            ancestor
+        };
+        match fs::metadata(ancestor) {
+            Ok(m) if m.is_dir() => {
+                let probe = ancestor.join(format!(".pxpl5-probe-{}", std::process::id()));
+                return fs::OpenOptions::new()
+                    .write(true)
+                    .create_new(true)
+                    .open(&probe)
+                    .and_then(|_| fs::remove_file(&probe))
+                    .map_err(|e| bad(format!("cannot write in {}: {e}", ancestor.display())));
+            }
+            Ok(_) => return Err(bad(format!("{} is not a directory", ancestor.display()))),
+            Err(e) if e.kind() == io::ErrorKind::NotFound => {}
+            Err(e) => return Err(bad(format!("{}: {e}", ancestor.display()))),
+        }
+    }
+    Err(bad("no part of it exists".to_string()))
+}
+
+/// `path` with its symbolic links followed to the end (a file that is not a link, or nothing).
+fn follow_symlinks(path: &Path) -> io::Result<PathBuf> {
+    let mut p = path.to_path_buf();
+    // Linux's limit on the links of one path.
+    for _ in 0..40 {
+        match fs::symlink_metadata(&p) {
+            Ok(m) if m.file_type().is_symlink() => {
+                // A relative target is relative to the link's directory.
+                p = parent_dir(&p).join(fs::read_link(&p)?);
+            }
+            _ => return Ok(p),
+        }
+    }
+    Err(io::Error::other("too many levels of symbolic links"))
+}
+
+/// The directory `path` is in (`.` for a bare file name).
+fn parent_dir(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// Write `bytes` to `dest` (see the module doc); an error names the file.
+pub fn write(dest: &Dest, bytes: &[u8]) -> Result<(), UserError> {
+    match dest {
+        Dest::Stdout => print_bytes(bytes),
+        Dest::Through(path) => write_through(path, bytes),
+        Dest::Replace(path) => {
+            let tmp = write_temp(path, bytes)?;
+            fs::rename(&tmp, path).map_err(|e| {
+                let _ = fs::remove_file(&tmp);
+                cannot_write(path, e)
+            })
+        }
+    }
+}
+
+/// Write each of `files` to its destination, in order ([`write()`]).
+pub fn write_all(files: &[(Dest, Vec<u8>)]) -> Result<(), UserError> {
+    files
+        .iter()
+        .try_for_each(|(dest, bytes)| write(dest, bytes))
+}
+
+fn cannot_write(path: &Path, e: io::Error) -> UserError {
+    UserError(format!("{}: cannot write: {e}", path.display()))
+}
+
+/// Open the existing special file `path` and write `bytes` to it.
+fn write_through(path: &Path, bytes: &[u8]) -> Result<(), UserError> {
+    fs::OpenOptions::new()
+        .write(true)
+        .open(path)
+        .and_then(|mut f| f.write_all(bytes).and_then(|()| f.flush()))
+        .map_err(|e| cannot_write(path, e))
+}
+
+/// Write `bytes` to a new temporary file beside `path`, on disk, with the permissions of the
+/// file at `path` if there is one; creates `path`'s missing directories. Returns the temporary
+/// file's path; on an error, nothing is left of it.
+fn write_temp(path: &Path, bytes: &[u8]) -> Result<PathBuf, UserError> {
+    let dir = parent_dir(path);
+    fs::create_dir_all(&dir).map_err(|e| cannot_write(path, e))?;
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    let tmp = dir.join(format!(".{name}.pxpl5-{}.tmp", std::process::id()));
+    let written = fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&tmp)
+        .and_then(|mut f| {
+            f.write_all(bytes)?;
+            if let Ok(old) = fs::metadata(path) {
+                f.set_permissions(old.permissions())?;
+            }
+            f.sync_all()
+        });
+    match written {
+        Ok(()) => Ok(tmp),
+        Err(e) => {
+            let _ = fs::remove_file(&tmp);
+            Err(cannot_write(path, e))
+        }
     }
 }

@@ -22,8 +22,8 @@ use pxpl5_radiosity::shot::{FfOptions, Method};
 use crate::UserError;
 use crate::choices::{Delta, DepthArg, EdgeRuleArg, FidelityArg, FormFactorMethod, Methods};
 use crate::config_cmd;
-use crate::output::{out, outln};
-use crate::run::{TraceArgs, png_bytes, probe_writable, timed, write_atomic};
+use crate::output::{self, out, outln};
+use crate::run::{TraceArgs, png_bytes, timed};
 
 /// Options of `pxpl5 radiosity`.
 #[derive(Args, Clone, Debug)]
@@ -139,6 +139,10 @@ fn run_method(
         "form-factor method starts"
     );
     let recorder = args.traces.recorder()?;
+    let several = args.method == Methods::Both;
+    let traces = args
+        .traces
+        .dests(|p| per_method(p, method, several), several)?;
     let settings = args.settings(method);
     let (run, host_seconds) = timed(
         "radiosity",
@@ -151,13 +155,16 @@ fn run_method(
             let path = args
                 .out
                 .join(format!("items-{}-shot{shot}-{}.png", method.name(), b.view));
-            write_atomic(&path, &png_bytes(&picture::item_buffer_picture(b))?)?;
+            write_file(&path, &png_bytes(&picture::item_buffer_picture(b))?)?;
         }
     }
-    let several = args.method == Methods::Both;
-    args.traces
-        .write(&run.recorder, |p| per_method(p, method, several))?;
+    output::write_all(&traces.files(&run.recorder)?)?;
     Ok((run, host_seconds))
+}
+
+/// Write `bytes` to `path` in the output directory.
+fn write_file(path: &Path, bytes: &[u8]) -> Result<(), UserError> {
+    output::write(&output::dest("--out", path, false)?, bytes)
 }
 
 pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
@@ -167,9 +174,7 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
         None => pxpl5_radiosity::scenes::cornell_box(),
     };
     let patches = mesh(&scene, args.patch_size).map_err(|e| UserError(e.to_string()))?;
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| UserError(format!("--out {}: cannot create: {e}", args.out.display())))?;
-    probe_writable(&args.out)?;
+    output::check_dir("--out", &args.out)?;
     let mut runs = Vec::new();
     let mut host_seconds = Vec::new();
     for method in args.method.methods() {
@@ -186,17 +191,17 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
         &runs,
     );
     out!("{}", table(&comparison, &host_seconds))?;
-    write_atomic(
+    write_file(
         &args.out.join("comparison.csv"),
         comparison_csv(&comparison).as_bytes(),
     )?;
-    write_atomic(
+    write_file(
         &args.out.join("comparison.json"),
         (serde_json::to_string_pretty(&comparison_json(&comparison)).map_err(UserError::from)?
             + "\n")
             .as_bytes(),
     )?;
-    write_atomic(
+    write_file(
         &args.out.join("config.ron"),
         pxpl5_config::show(&cfg).as_bytes(),
     )?;
@@ -208,7 +213,7 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
             p.surface, p.area, b[0], b[1], b[2]
         );
     }
-    write_atomic(&args.out.join("patches.csv"), pcsv.as_bytes())?;
+    write_file(&args.out.join("patches.csv"), pcsv.as_bytes())?;
     if let Some(camera) = &scene.camera {
         let (picture, _) = timed(
             "polygons",
@@ -216,7 +221,7 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
             || picture::render(&cfg, &patches, &last.solution, camera.clone()),
             |r| r.stats.end,
         )?;
-        write_atomic(&args.out.join("radiosity.png"), &png_bytes(&picture.frame)?)?;
+        write_file(&args.out.join("radiosity.png"), &png_bytes(&picture.frame)?)?;
     }
     outln!(
         "wrote {}/comparison.csv, comparison.json, patches.csv, config.ron, radiosity.png",

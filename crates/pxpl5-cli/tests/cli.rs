@@ -634,3 +634,118 @@ fn a_full_stdout_is_an_error_naming_stdout() {
         assert!(err.starts_with("stdout: cannot write: "), "{args:?}: {err}");
     }
 }
+
+/// `pxpl5 run` of the small scene on the minimal machine into `out`, with `extra` flags.
+fn run_small_with(out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "run",
+        "--config",
+        "machine-configs/minimal.ron",
+        "--scene",
+        "programs/polygons/scenes/small.ron",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    pxpl5(&args)
+}
+
+fn assert_chrome_trace(bytes: &[u8]) {
+    let trace: serde_json::Value = serde_json::from_slice(bytes).expect("a Chrome trace");
+    assert!(trace["traceEvents"].as_array().unwrap().len() > 50);
+}
+
+#[cfg(unix)]
+#[test]
+fn a_fifo_output_is_written_through_and_stays_a_fifo() {
+    use std::os::unix::fs::FileTypeExt;
+    let d = out_dir("fifo");
+    std::fs::create_dir_all(&d).unwrap();
+    let fifo = d.join("trace.fifo");
+    let made = Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        return; // no mkfifo on this host
+    }
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read(fifo).unwrap())
+    };
+    let out = run_small_with(&d.join("out"), &["--trace", fifo.to_str().unwrap()]);
+    // Should pxpl5 not have opened the FIFO, open it as a writer (read-write does not block on
+    // Linux) so that the reader sees its end instead of waiting forever.
+    drop(
+        std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .open(&fifo),
+    );
+    let bytes = reader.join().unwrap();
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let kind = std::fs::symlink_metadata(&fifo).unwrap().file_type();
+    assert!(kind.is_fifo(), "the FIFO was replaced: {kind:?}");
+    assert_chrome_trace(&bytes);
+}
+
+#[cfg(unix)]
+#[test]
+fn a_symlink_output_stays_a_symlink_and_a_device_a_device() {
+    use std::os::unix::fs::FileTypeExt;
+    let d = out_dir("symlink");
+    std::fs::create_dir_all(&d).unwrap();
+    let real = d.join("real.json");
+    std::fs::write(&real, "old").unwrap();
+    let link = d.join("link.json");
+    // Relative to the link's directory, not to pxpl5's.
+    std::os::unix::fs::symlink("real.json", &link).unwrap();
+    let out = run_small_with(
+        &d.join("out"),
+        &["--trace", link.to_str().unwrap(), "--vcd", "/dev/null"],
+    );
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let kind = std::fs::symlink_metadata(&link).unwrap().file_type();
+    assert!(kind.is_symlink(), "the symlink was replaced: {kind:?}");
+    assert_eq!(std::fs::read_link(&link).unwrap(), Path::new("real.json"));
+    assert_chrome_trace(&std::fs::read(&real).unwrap());
+    let null = std::fs::metadata("/dev/null").unwrap().file_type();
+    assert!(null.is_char_device(), "{null:?}");
+}
+
+#[test]
+fn a_directory_given_for_a_file_fails_before_the_run() {
+    let d = out_dir("trace-dir");
+    let dir = d.join("some/dir");
+    std::fs::create_dir_all(&dir).unwrap();
+    let out_d = d.join("out");
+    for flag in ["--trace", "--vcd"] {
+        let out = run_small_with(&out_d, &[flag, dir.to_str().unwrap()]);
+        assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+        let err = text(&out.stderr);
+        assert!(
+            err.contains(flag) && err.contains("is a directory"),
+            "{err}"
+        );
+        assert!(!err.contains("simulation"), "{err}");
+        assert!(!out_d.exists(), "{flag}: something was written");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+    }
+    // A directory where run writes one of its own files.
+    std::fs::create_dir_all(out_d.join("stats.json")).unwrap();
+    let out = run_small_with(&out_d, &[]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("stats.json: is a directory"));
+    assert_eq!(std::fs::read_dir(&out_d).unwrap().count(), 1);
+}
+
+#[test]
+fn a_dash_sends_a_trace_to_stdout_and_the_report_to_stderr() {
+    let d = out_dir("dash");
+    let out = run_small_with(&d, &["--trace", "-"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert_chrome_trace(&out.stdout);
+    assert!(text(&out.stderr).contains("triangles per simulated second"));
+    assert!(!d.join("-").exists());
+    // Two runs cannot share stdout.
+    let out = pxpl5(&["radiosity", "--trace", "-", "--out", d.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("--trace -"));
+}
