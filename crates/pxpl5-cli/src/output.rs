@@ -1,5 +1,5 @@
 //! Everything the `pxpl5` command writes goes through here: its report ([`out!`], [`outln!`]),
-//! its messages on stderr ([`errln!`]) and its files ([`dest`], [`write()`]).
+//! its messages on stderr ([`errln!`]) and its files ([`dest`], [`write_all`]).
 //!
 //! # Printing
 //!
@@ -37,6 +37,9 @@
 //! - a directory, a read-only file, a path under a regular file, or a directory where no file can
 //!   be created: an error naming the path, exit code 2, before any work.
 //! - `-`, for the outputs that take it (`--trace`, `--vcd`): stdout.
+//!
+//! A command computes everything first and then hands all its files to [`write_all`], which
+//! writes them all or none (see there); two outputs to one file are refused ([`distinct`]).
 
 use std::fmt;
 use std::fs;
@@ -146,19 +149,17 @@ pub fn dest(what: &str, path: &Path, dash_is_stdout: bool) -> Result<Dest, UserE
     }
     let end = follow_symlinks(path)
         .map_err(|e| bad(&format!("cannot follow its symbolic links: {e}")))?;
-    let parent = || parent_dir(&end);
+    let in_a_directory = || match dir_problem(&parent_dir(&end)) {
+        Some(problem) => Err(bad(&problem)),
+        None => Ok(Dest::Replace(end.clone())),
+    };
     match fs::metadata(&end) {
         Ok(m) if m.is_dir() => Err(bad("is a directory; a file is expected here")),
         Ok(m) if m.permissions().readonly() => Err(bad("is read-only")),
-        Ok(m) if m.is_file() => {
-            check_dir(what, &parent())?;
-            Ok(Dest::Replace(end))
-        }
+        Ok(m) if m.is_file() => in_a_directory(),
         Ok(_) => Ok(Dest::Through(end)),
-        Err(e) if e.kind() == io::ErrorKind::NotFound => {
-            check_dir(what, &parent())?;
-            Ok(Dest::Replace(end))
-        }
+        // Not there, or under a file: dir_problem says which.
+        Err(e) if is_missing(&e) => in_a_directory(),
         Err(e) => Err(bad(&format!("cannot read what it is: {e}"))),
     }
 }
@@ -167,7 +168,13 @@ pub fn dest(what: &str, path: &Path, dash_is_stdout: bool) -> Result<Dest, UserE
 /// nearest existing ancestor must be a directory that takes a file (a probe, removed at once).
 /// Creates nothing.
 pub fn check_dir(what: &str, dir: &Path) -> Result<(), UserError> {
-    let bad = |problem: String| UserError(format!("{what} {}: {problem}", dir.display()));
+    dir_problem(dir).map_or(Ok(()), |problem| {
+        Err(UserError(format!("{what} {}: {problem}", dir.display())))
+    })
+}
+
+/// What keeps `dir` from taking files, if anything ([`check_dir`]).
+fn dir_problem(dir: &Path) -> Option<String> {
     for ancestor in dir.ancestors() {
         let ancestor = if ancestor.as_os_str().is_empty() {
             Path::new(".")
@@ -182,14 +189,23 @@ pub fn check_dir(what: &str, dir: &Path) -> Result<(), UserError> {
                     .create_new(true)
                     .open(&probe)
                     .and_then(|_| fs::remove_file(&probe))
-                    .map_err(|e| bad(format!("cannot write in {}: {e}", ancestor.display())));
+                    .err()
+                    .map(|e| format!("cannot write in {}: {e}", ancestor.display()));
             }
-            Ok(_) => return Err(bad(format!("{} is not a directory", ancestor.display()))),
-            Err(e) if e.kind() == io::ErrorKind::NotFound => {}
-            Err(e) => return Err(bad(format!("{}: {e}", ancestor.display()))),
+            Ok(_) => return Some(format!("{} is not a directory", ancestor.display())),
+            Err(e) if is_missing(&e) => {}
+            Err(e) => return Some(format!("{}: {e}", ancestor.display())),
         }
     }
-    Err(bad("no part of it exists".to_string()))
+    Some("no part of it exists".to_string())
+}
+
+/// Whether `e` says that a path does not exist, or goes through a file that is not a directory.
+fn is_missing(e: &io::Error) -> bool {
+    matches!(
+        e.kind(),
+        io::ErrorKind::NotFound | io::ErrorKind::NotADirectory
+    )
 }
 
 /// `path` with its symbolic links followed to the end (a file that is not a link, or nothing).
@@ -216,26 +232,84 @@ fn parent_dir(path: &Path) -> PathBuf {
     }
 }
 
-/// Write `bytes` to `dest` (see the module doc); an error names the file.
-pub fn write(dest: &Dest, bytes: &[u8]) -> Result<(), UserError> {
-    match dest {
-        Dest::Stdout => print_bytes(bytes),
-        Dest::Through(path) => write_through(path, bytes),
-        Dest::Replace(path) => {
-            let tmp = write_temp(path, bytes)?;
-            fs::rename(&tmp, path).map_err(|e| {
-                let _ = fs::remove_file(&tmp);
-                cannot_write(path, e)
-            })
+/// Fail, naming it, if two of `dests` are the same file or both stdout: the second would
+/// overwrite the first.
+pub fn distinct<'a>(dests: impl IntoIterator<Item = &'a Dest>) -> Result<(), UserError> {
+    let mut seen = std::collections::BTreeSet::new();
+    for dest in dests {
+        let key = match dest {
+            Dest::Stdout => None,
+            Dest::Replace(p) | Dest::Through(p) => {
+                Some(std::path::absolute(p).unwrap_or_else(|_| p.clone()))
+            }
+        };
+        if !seen.insert(key.clone()) {
+            let what = key.map_or("stdout".to_string(), |p| p.display().to_string());
+            return Err(UserError(format!(
+                "{what}: two outputs would write it; give each its own"
+            )));
         }
     }
+    Ok(())
 }
 
-/// Write each of `files` to its destination, in order ([`write()`]).
+/// Write each of `files` to its destination, all or nothing as far as files can be: first every
+/// replaced file to a temporary file beside it (creating missing directories), then the files
+/// written through and stdout, and only then the renames. A failure before the renames removes
+/// the temporary files and the directories created, so that the paths are as they were (a FIFO,
+/// a device or stdout may have received part of its bytes); only a failing rename, after the
+/// others, can leave some files replaced. An error names the file.
 pub fn write_all(files: &[(Dest, Vec<u8>)]) -> Result<(), UserError> {
-    files
-        .iter()
-        .try_for_each(|(dest, bytes)| write(dest, bytes))
+    distinct(files.iter().map(|(dest, _)| dest))?;
+    let mut created = Vec::new();
+    let mut temps: Vec<(PathBuf, &Path)> = Vec::new();
+    let undo = |temps: &[(PathBuf, &Path)], created: &[PathBuf]| {
+        for (tmp, _) in temps {
+            let _ = fs::remove_file(tmp);
+        }
+        // Deepest first; a directory something else wrote into in the meantime stays.
+        for dir in created.iter().rev() {
+            let _ = fs::remove_dir(dir);
+        }
+    };
+    let staged = files.iter().try_for_each(|(dest, bytes)| {
+        if let Dest::Replace(path) = dest {
+            create_dirs(&parent_dir(path), &mut created).map_err(|e| cannot_write(path, e))?;
+            temps.push((write_temp(path, bytes)?, path));
+        }
+        Ok(())
+    });
+    let passed = staged.and_then(|()| {
+        files.iter().try_for_each(|(dest, bytes)| match dest {
+            Dest::Stdout => print_bytes(bytes),
+            Dest::Through(path) => write_through(path, bytes),
+            Dest::Replace(_) => Ok(()),
+        })
+    });
+    if let Err(e) = passed {
+        undo(&temps, &created);
+        return Err(e);
+    }
+    for (k, (tmp, path)) in temps.iter().enumerate() {
+        if let Err(e) = fs::rename(tmp, path) {
+            undo(&temps[k..], &[]);
+            return Err(cannot_write(path, e));
+        }
+    }
+    Ok(())
+}
+
+/// Create `dir` and its missing ancestors, adding those it created to `created`, outermost first.
+fn create_dirs(dir: &Path, created: &mut Vec<PathBuf>) -> io::Result<()> {
+    let missing: Vec<&Path> = dir
+        .ancestors()
+        .take_while(|d| !d.as_os_str().is_empty() && fs::symlink_metadata(d).is_err())
+        .collect();
+    for d in missing.into_iter().rev() {
+        fs::create_dir(d)?;
+        created.push(d.to_path_buf());
+    }
+    Ok(())
 }
 
 fn cannot_write(path: &Path, e: io::Error) -> UserError {
@@ -252,11 +326,10 @@ fn write_through(path: &Path, bytes: &[u8]) -> Result<(), UserError> {
 }
 
 /// Write `bytes` to a new temporary file beside `path`, on disk, with the permissions of the
-/// file at `path` if there is one; creates `path`'s missing directories. Returns the temporary
-/// file's path; on an error, nothing is left of it.
+/// file at `path` if there is one. Returns the temporary file's path; on an error, nothing is
+/// left of it.
 fn write_temp(path: &Path, bytes: &[u8]) -> Result<PathBuf, UserError> {
     let dir = parent_dir(path);
-    fs::create_dir_all(&dir).map_err(|e| cannot_write(path, e))?;
     let name = path.file_name().unwrap_or_default().to_string_lossy();
     let tmp = dir.join(format!(".{name}.pxpl5-{}.tmp", std::process::id()));
     let written = fs::OpenOptions::new()

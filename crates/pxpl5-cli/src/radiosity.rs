@@ -125,7 +125,7 @@ impl RadiosityArgs {
     }
 }
 
-/// Run `method` and write its item buffers and traces; returns the run and its host seconds.
+/// Run `method`; returns the run and its host seconds. Writes nothing.
 fn run_method(
     cfg: &pxpl5_config::MachineConfig,
     patches: &[Patch],
@@ -139,34 +139,27 @@ fn run_method(
         "form-factor method starts"
     );
     let recorder = args.traces.recorder()?;
-    let several = args.method == Methods::Both;
-    let traces = args
-        .traces
-        .dests(|p| per_method(p, method, several), several)?;
     let settings = args.settings(method);
-    let (run, host_seconds) = timed(
+    timed(
         "radiosity",
         settings.run.fidelity,
         || experiment::run(cfg, patches, &settings, recorder),
         |r| r.stats.end,
-    )?;
-    for (shot, views) in &run.item_buffers {
-        for b in views {
-            let path = args
-                .out
-                .join(format!("items-{}-shot{shot}-{}.png", method.name(), b.view));
-            write_file(&path, &png_bytes(&picture::item_buffer_picture(b))?)?;
-        }
-    }
-    output::write_all(&traces.files(&run.recorder)?)?;
-    Ok((run, host_seconds))
+    )
 }
 
-/// Write `bytes` to `path` in the output directory.
-fn write_file(path: &Path, bytes: &[u8]) -> Result<(), UserError> {
-    output::write(&output::dest("--out", path, false)?, bytes)
-}
+/// The files of the output directory whose names are known before the run.
+const FILES: [&str; 5] = [
+    "comparison.csv",
+    "comparison.json",
+    "patches.csv",
+    "config.ron",
+    "radiosity.png",
+];
 
+/// Runs every method, renders the picture, and only then writes every output, all or nothing
+/// (`output::write_all`), and prints the report: a failure anywhere leaves the output directory
+/// as it was. Every output whose name is known is checked before the first run.
 pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
     let cfg = config_cmd::load(args.config.as_deref())?;
     let scene: RadiosityScene = match &args.scene {
@@ -174,10 +167,30 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
         None => pxpl5_radiosity::scenes::cornell_box(),
     };
     let patches = mesh(&scene, args.patch_size).map_err(|e| UserError(e.to_string()))?;
+
+    // Check every destination before the first run.
     output::check_dir("--out", &args.out)?;
+    let names = match scene.camera {
+        Some(_) => &FILES[..],
+        None => &FILES[..4],
+    };
+    let files = names
+        .iter()
+        .map(|name| output::dest("--out", &args.out.join(name), false))
+        .collect::<Result<Vec<_>, _>>()?;
+    args.traces.recorder()?;
+    let methods = args.method.methods();
+    let several = methods.len() > 1;
+    let traces = methods
+        .iter()
+        .map(|&m| args.traces.dests(|p| per_method(p, m, several), several))
+        .collect::<Result<Vec<_>, _>>()?;
+    output::distinct(files.iter().chain(traces.iter().flat_map(|t| t.iter())))?;
+
+    // Compute everything.
     let mut runs = Vec::new();
     let mut host_seconds = Vec::new();
-    for method in args.method.methods() {
+    for &method in &methods {
         let (run, host) = run_method(&cfg, &patches, args, method)?;
         runs.push(run);
         host_seconds.push(host);
@@ -190,22 +203,21 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
         args.resolution,
         &runs,
     );
-    out!("{}", table(&comparison, &host_seconds))?;
-    write_file(
-        &args.out.join("comparison.csv"),
-        comparison_csv(&comparison).as_bytes(),
-    )?;
-    write_file(
-        &args.out.join("comparison.json"),
-        (serde_json::to_string_pretty(&comparison_json(&comparison)).map_err(UserError::from)?
-            + "\n")
-            .as_bytes(),
-    )?;
-    write_file(
-        &args.out.join("config.ron"),
-        pxpl5_config::show(&cfg).as_bytes(),
-    )?;
     let last = runs.last().expect("at least one method");
+    let picture = match &scene.camera {
+        Some(camera) => {
+            let (picture, _) = timed(
+                "polygons",
+                RunOptions::default().fidelity,
+                || picture::render(&cfg, &patches, &last.solution, camera.clone()),
+                |r| r.stats.end,
+            )?;
+            Some(png_bytes(&picture.frame)?)
+        }
+        None => None,
+    };
+
+    // Then write it all.
     let mut pcsv = String::from("patch,surface,area,r,g,b\n");
     for (i, (p, b)) in patches.iter().zip(&last.solution.radiosity).enumerate() {
         pcsv += &format!(
@@ -213,20 +225,30 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
             p.surface, p.area, b[0], b[1], b[2]
         );
     }
-    write_file(&args.out.join("patches.csv"), pcsv.as_bytes())?;
-    if let Some(camera) = &scene.camera {
-        let (picture, _) = timed(
-            "polygons",
-            RunOptions::default().fidelity,
-            || picture::render(&cfg, &patches, &last.solution, camera.clone()),
-            |r| r.stats.end,
-        )?;
-        write_file(&args.out.join("radiosity.png"), &png_bytes(&picture.frame)?)?;
+    let json =
+        serde_json::to_string_pretty(&comparison_json(&comparison)).map_err(UserError::from)?;
+    let mut contents = vec![
+        comparison_csv(&comparison).into_bytes(),
+        (json + "\n").into_bytes(),
+        pcsv.into_bytes(),
+        pxpl5_config::show(&cfg).into_bytes(),
+    ];
+    contents.extend(picture);
+    let mut writes: Vec<_> = files.into_iter().zip(contents).collect();
+    for (run, traces) in runs.iter().zip(&traces) {
+        for (shot, views) in &run.item_buffers {
+            for b in views {
+                let name = format!("items-{}-shot{shot}-{}.png", run.method.name(), b.view);
+                let dest = output::dest("--out", &args.out.join(name), false)?;
+                writes.push((dest, png_bytes(&picture::item_buffer_picture(b))?));
+            }
+        }
+        writes.extend(traces.files(&run.recorder)?);
     }
-    outln!(
-        "wrote {}/comparison.csv, comparison.json, patches.csv, config.ron, radiosity.png",
-        args.out.display()
-    )?;
+    output::write_all(&writes)?;
+
+    out!("{}", table(&comparison, &host_seconds))?;
+    outln!("wrote {}/{}", args.out.display(), names.join(", "))?;
     Ok(())
 }
 

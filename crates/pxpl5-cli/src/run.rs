@@ -68,11 +68,13 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
 
     // Check every destination before spending time on the run.
     output::check_dir("--out", &args.out)?;
-    let [stats_dest, config_dest, frame_dest] = ["stats.json", "config.ron", "frame.png"]
-        .map(|name| output::dest("--out", &args.out.join(name), false));
-    let (stats_dest, config_dest, frame_dest) = (stats_dest?, config_dest?, frame_dest?);
+    let dests = ["stats.json", "config.ron", "frame.png"]
+        .iter()
+        .map(|name| output::dest("--out", &args.out.join(name), false))
+        .collect::<Result<Vec<_>, _>>()?;
     let recorder = args.traces.recorder()?;
     let traces = args.traces.dests(Path::to_path_buf, false)?;
+    output::distinct(dests.iter().chain(traces.iter()))?;
 
     let program = Polygons::new(scene);
     let options = RunOptions { fidelity, max_time };
@@ -81,11 +83,12 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
     let stats = &result.stats;
     let mut json = serde_json::to_string_pretty(&stats.to_json()).map_err(UserError::from)?;
     json.push('\n');
-    let mut files = vec![
-        (stats_dest, json.into_bytes()),
-        (config_dest, pxpl5_config::show(&cfg).into_bytes()),
-        (frame_dest, png_bytes(&result.frame)?),
+    let contents = [
+        json.into_bytes(),
+        pxpl5_config::show(&cfg).into_bytes(),
+        png_bytes(&result.frame)?,
     ];
+    let mut files: Vec<_> = dests.into_iter().zip(contents).collect();
     files.extend(traces.files(&result.recorder)?);
     output::write_all(&files)?;
 
@@ -218,6 +221,11 @@ pub struct TraceDests {
 }
 
 impl TraceDests {
+    /// The destinations of the traces asked for.
+    pub fn iter(&self) -> impl Iterator<Item = &Dest> {
+        self.trace.iter().chain(&self.vcd)
+    }
+
     /// A finished run's trace files: where each goes and its bytes.
     pub fn files(&self, recorder: &Recorder) -> Result<Vec<(Dest, Vec<u8>)>, UserError> {
         let mut files = Vec::new();

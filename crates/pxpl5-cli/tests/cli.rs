@@ -749,3 +749,147 @@ fn a_dash_sends_a_trace_to_stdout_and_the_report_to_stderr() {
     assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
     assert!(text(&out.stderr).contains("--trace -"));
 }
+
+/// The seed machine with a 1 kHz Renderer clock: radiosity's form-factor runs fit their limit
+/// (1,000 s simulated), the picture's render does not (10 s), so it fails after everything else
+/// was computed.
+fn slow_renderer_config() -> PathBuf {
+    let seed = std::fs::read_to_string(root().join("machine-configs/seed-tr89-002.ron")).unwrap();
+    let clock = "clock_hz: 40_000_000, // [paper]";
+    assert_eq!(
+        seed.matches(clock).count(),
+        1,
+        "the Renderer clock's line moved"
+    );
+    temp_file(
+        "slow-renderer.ron",
+        &seed.replace(clock, "clock_hz: 1_000, // [paper]"),
+    )
+}
+
+/// The names and contents of the files of `dir`, sorted.
+fn listing(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut files: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            (
+                e.file_name().to_string_lossy().into_owned(),
+                std::fs::read(e.path()).unwrap(),
+            )
+        })
+        .collect();
+    files.sort();
+    files
+}
+
+#[test]
+fn a_failed_run_leaves_the_output_directory_as_it_found_it() {
+    let config = slow_renderer_config();
+    // A directory that does not exist stays absent; one that exists keeps its files, unchanged.
+    let absent = out_dir("failed-absent").join("out");
+    let present = out_dir("failed-present");
+    std::fs::create_dir_all(&present).unwrap();
+    std::fs::write(present.join("keep.txt"), "mine").unwrap();
+    std::fs::write(present.join("comparison.csv"), "old").unwrap();
+    let before = listing(&present);
+    for out_d in [&absent, &present] {
+        // Both methods run, with item buffers and traces; the picture's render fails last.
+        let out = pxpl5(&[
+            "radiosity",
+            "--config",
+            config.to_str().unwrap(),
+            "--shots",
+            "1",
+            "--patch-size",
+            "400",
+            "--resolution",
+            "16",
+            "--item-buffers",
+            "0",
+            "--out",
+            out_d.to_str().unwrap(),
+            "--trace",
+            out_d.join("t.json").to_str().unwrap(),
+        ]);
+        no_panic(&out);
+        let err = text(&out.stderr);
+        assert!(matches!(out.status.code(), Some(1 | 2)), "{err}");
+        assert!(err.contains("time limit"), "{err}");
+        assert_eq!(text(&out.stdout), "", "a failed run prints no report");
+    }
+    assert!(
+        !absent.exists(),
+        "a failed run created its output directory"
+    );
+    assert_eq!(listing(&present), before);
+
+    // `run` past its --max-time.
+    let run_d = out_dir("failed-run");
+    let out = run_small_with(
+        &run_d,
+        &[
+            "--max-time",
+            "1us",
+            "--trace",
+            run_d.join("t.json").to_str().unwrap(),
+        ],
+    );
+    no_panic(&out);
+    assert!(
+        matches!(out.status.code(), Some(1 | 2)),
+        "{}",
+        text(&out.stderr)
+    );
+    assert!(!run_d.exists(), "a failed run wrote {:?}", listing(&run_d));
+}
+
+#[test]
+fn a_failed_write_takes_back_the_files_written_before_it() {
+    if !Path::new("/dev/full").exists() {
+        return;
+    }
+    // The trace goes to stdout, which is full: stats.json, config.ron and frame.png were staged
+    // before it and must not appear.
+    let run_d = out_dir("failed-write");
+    let full = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/full")
+        .unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_pxpl5"))
+        .args([
+            "run",
+            "--config",
+            "machine-configs/minimal.ron",
+            "--scene",
+            "programs/polygons/scenes/small.ron",
+            "--out",
+            run_d.join("new/dirs").to_str().unwrap(),
+            "--trace",
+            "-",
+        ])
+        .current_dir(root())
+        .stdout(full)
+        .output()
+        .unwrap();
+    no_panic(&out);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("stdout: cannot write"));
+    assert!(!run_d.exists(), "left behind: {:?}", listing(&run_d));
+}
+
+#[test]
+fn two_outputs_to_one_file_fail_before_the_run() {
+    let d = out_dir("twice");
+    let out = run_small_with(&d, &["--trace", d.join("stats.json").to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("two outputs"),
+        "{}",
+        text(&out.stderr)
+    );
+    let out = run_small_with(&d, &["--trace", "-", "--vcd", "-"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("stdout: two outputs"));
+    assert!(!d.exists());
+}
