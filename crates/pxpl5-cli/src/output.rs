@@ -128,8 +128,8 @@ pub enum Dest {
     /// A regular file or nothing yet, at the end of the path's symlinks: written to a temporary
     /// file beside it and renamed over it.
     Replace(PathBuf),
-    /// An existing file that is not regular (a FIFO, a device), at the end of the path's
-    /// symlinks: opened and written, never replaced.
+    /// An existing file that is not regular (a FIFO, a device, a symlink to one): opened and
+    /// written, never replaced.
     Through(PathBuf),
 }
 
@@ -147,19 +147,21 @@ pub fn dest(what: &str, path: &Path, dash_is_stdout: bool) -> Result<Dest, UserE
     if names_a_directory || path.file_name().is_none() {
         return Err(bad("names a directory; a file is expected here"));
     }
-    let end = follow_symlinks(path)
-        .map_err(|e| bad(&format!("cannot follow its symbolic links: {e}")))?;
-    let in_a_directory = || match dir_problem(&parent_dir(&end)) {
-        Some(problem) => Err(bad(&problem)),
-        None => Ok(Dest::Replace(end.clone())),
+    let in_a_directory = |end: io::Result<PathBuf>| {
+        let end = end.map_err(|e| bad(&format!("cannot follow its symbolic links: {e}")))?;
+        match dir_problem(&parent_dir(&end)) {
+            Some(problem) => Err(bad(&problem)),
+            None => Ok(Dest::Replace(end)),
+        }
     };
-    match fs::metadata(&end) {
+    // The kernel follows the symlinks, /proc's too (`/dev/stdout`).
+    match fs::metadata(path) {
         Ok(m) if m.is_dir() => Err(bad("is a directory; a file is expected here")),
         Ok(m) if m.permissions().readonly() => Err(bad("is read-only")),
-        Ok(m) if m.is_file() => in_a_directory(),
-        Ok(_) => Ok(Dest::Through(end)),
-        // Not there, or under a file: dir_problem says which.
-        Err(e) if is_missing(&e) => in_a_directory(),
+        Ok(m) if m.is_file() => in_a_directory(fs::canonicalize(path)),
+        Ok(_) => Ok(Dest::Through(path.to_path_buf())),
+        // Nothing there (or a symlink to nothing), or under a file: dir_problem says which.
+        Err(e) if is_missing(&e) => in_a_directory(follow_symlinks(path)),
         Err(e) => Err(bad(&format!("cannot read what it is: {e}"))),
     }
 }
@@ -208,7 +210,8 @@ fn is_missing(e: &io::Error) -> bool {
     )
 }
 
-/// `path` with its symbolic links followed to the end (a file that is not a link, or nothing).
+/// `path` with its symbolic links followed to the end, for a path that leads to nothing: where a
+/// new file would be (a symlink to a missing file creates that file).
 fn follow_symlinks(path: &Path) -> io::Result<PathBuf> {
     let mut p = path.to_path_buf();
     // Linux's limit on the links of one path.
@@ -316,13 +319,17 @@ fn cannot_write(path: &Path, e: io::Error) -> UserError {
     UserError(format!("{}: cannot write: {e}", path.display()))
 }
 
-/// Open the existing special file `path` and write `bytes` to it.
+/// Open the existing special file `path` and write `bytes` to it. A reader that closes a pipe
+/// (a FIFO, `/dev/stdout`) before the end is no error, as for stdout.
 fn write_through(path: &Path, bytes: &[u8]) -> Result<(), UserError> {
-    fs::OpenOptions::new()
+    let written = fs::OpenOptions::new()
         .write(true)
         .open(path)
-        .and_then(|mut f| f.write_all(bytes).and_then(|()| f.flush()))
-        .map_err(|e| cannot_write(path, e))
+        .and_then(|mut f| f.write_all(bytes).and_then(|()| f.flush()));
+    match written {
+        Err(e) if e.kind() != io::ErrorKind::BrokenPipe => Err(cannot_write(path, e)),
+        _ => Ok(()),
+    }
 }
 
 /// Write `bytes` to a new temporary file beside `path`, on disk, with the permissions of the

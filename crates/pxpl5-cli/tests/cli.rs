@@ -708,6 +708,12 @@ fn a_symlink_output_stays_a_symlink_and_a_device_a_device() {
     assert_chrome_trace(&std::fs::read(&real).unwrap());
     let null = std::fs::metadata("/dev/null").unwrap().file_type();
     assert!(null.is_char_device(), "{null:?}");
+    // /dev/stdout links to /proc/self/fd/1, which names a pipe here, not a path to follow.
+    if Path::new("/dev/stdout").exists() {
+        let out = run_small_with(&d.join("out"), &["--trace", "/dev/stdout"]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        assert!(text(&out.stdout).starts_with("{\"displayTimeUnit\""));
+    }
 }
 
 #[test]
