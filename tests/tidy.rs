@@ -13,7 +13,10 @@
 //!   that a violation fails;
 //! - every crate's manifest takes the workspace's lints (`[lints] workspace = true`);
 //! - `crates/pxpl5-sim/src` names no unit of Pixel-Planes 5 (GP, Renderer, ring, QEE, IGC, frame
-//!   buffer), in code, comments or docs alike.
+//!   buffer), in code, comments or docs alike;
+//! - the CLI (`crates/pxpl5-cli/src`) prints only through its writer (`output.rs`): no `println!`,
+//!   `print!`, `eprintln!` or `eprint!`, which panic when their stream is closed or full; a test
+//!   checks that the scan catches each.
 //!
 //! Each check also asserts that it found what it checks (files, crates, manifests, table rows),
 //! so that a moved directory or a renamed table fails instead of passing on nothing.
@@ -531,5 +534,67 @@ fn geometry_and_scene_formats_have_one_home() {
         problems.is_empty(),
         "vector math belongs to pxpl5-geom (glam) and scene formats to their programs:\n  {}",
         problems.join("\n  ")
+    );
+}
+
+/// The std print macros: each panics when its stream fails (a closed pipe, a full device).
+const PRINT_MACROS: [&str; 4] = ["println!", "print!", "eprintln!", "eprint!"];
+
+/// The 1-based numbers of the lines of `text` that call a std print macro, outside `//`
+/// comments.
+fn print_macro_lines(text: &str) -> Vec<usize> {
+    let mut lines = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        let code = line.split("//").next().unwrap_or("");
+        let calls = PRINT_MACROS.iter().any(|m| {
+            code.match_indices(m).any(|(at, _)| {
+                // A whole name: not the end of `outln!`, `my_print!` or `eprint!` inside `print!`.
+                let before = code[..at].chars().next_back();
+                !before.is_some_and(|c| c.is_alphanumeric() || c == '_')
+            })
+        });
+        if calls {
+            lines.push(n + 1);
+        }
+    }
+    lines
+}
+
+#[test]
+fn the_print_macro_scan_catches_each_macro() {
+    for m in PRINT_MACROS {
+        let text = format!("fn f() {{\n    {m}(\"x\");\n}}\n");
+        assert_eq!(print_macro_lines(&text), vec![2], "{m} not caught");
+    }
+    let clean = "outln!(\"x\")?;\nerrln!(\"y\");\n// println!(\"in a comment\")\nlet s = \"a\"; // print!\n";
+    assert_eq!(print_macro_lines(clean), Vec::<usize>::new());
+}
+
+/// The CLI prints through `output.rs`, which turns a closed or full stdout into an exit code
+/// instead of a panic (exit 101).
+#[test]
+fn the_cli_prints_only_through_its_writer() {
+    let root = workspace_root();
+    let mut files = Vec::new();
+    rust_files(&root.join("crates/pxpl5-cli/src"), &mut files);
+    assert!(
+        files.iter().any(|f| f.ends_with("output.rs")) && files.len() >= 5,
+        "found {} files in crates/pxpl5-cli/src, without its writer output.rs",
+        files.len()
+    );
+    let mut found = Vec::new();
+    for f in &files {
+        let text = fs::read_to_string(f).unwrap_or_default();
+        let rel = f.strip_prefix(&root).unwrap_or(f).display().to_string();
+        found.extend(
+            print_macro_lines(&text)
+                .into_iter()
+                .map(|n| format!("{rel}:{n}")),
+        );
+    }
+    assert!(
+        found.is_empty(),
+        "the CLI prints through output.rs (out!, outln!, errln!), not std's print macros:\n  {}",
+        found.join("\n  ")
     );
 }

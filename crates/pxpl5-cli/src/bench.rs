@@ -17,6 +17,7 @@ use pxpl5_renderer::{Board, Fidelity};
 use crate::UserError;
 use crate::choices::{BenchFidelity, Methods};
 use crate::config_cmd;
+use crate::output::outln;
 
 /// Options of `pxpl5 bench renderer`.
 #[derive(Args, Clone, Debug)]
@@ -95,7 +96,7 @@ pub fn renderer(args: &RendererArgs) -> Result<(), UserError> {
     if args.json {
         print_json(&cfg, &report, agree)?;
     } else {
-        print_table(&cfg, args, &report, agree);
+        print_table(&cfg, args, &report, agree)?;
     }
     if agree {
         Ok(())
@@ -185,10 +186,10 @@ fn print_json(
         "streams": streams,
         "levels_agree": agree,
     });
-    println!(
+    outln!(
         "{}",
         serde_json::to_string_pretty(&out).map_err(UserError::from)?
-    );
+    )?;
     Ok(())
 }
 
@@ -197,9 +198,9 @@ fn print_table(
     args: &RendererArgs,
     report: &[(Stream, Vec<Measured>)],
     agree: bool,
-) {
+) -> Result<(), UserError> {
     let r = &cfg.renderer;
-    println!(
+    outln!(
         "pxpl5 bench renderer: the radiosity program's own command stream, one board\n\
          machine {} (hash {}): one {} x {} board, {} bits per pixel, {} MHz; host figures: \
          fastest of {} runs",
@@ -210,22 +211,27 @@ fn print_table(
         r.pixel_memory_bits,
         r.clock_hz / 1_000_000,
         args.repeat
-    );
+    )?;
     for (stream, results) in report {
         let (signs, sign_cycles) = results.first().map_or((0, 0), |m| m.signs);
-        println!(
+        outln!(
             "\n{}\n{} commands; {} sign tests, {:.1} cycles each on average\n",
             stream.description,
             stream.commands.len(),
             signs,
             sign_cycles as f64 / signs.max(1) as f64
-        );
-        println!(
+        )?;
+        outln!(
             "{:<9} {:>16} {:>14}  {:<16} {:>12} {:>22}",
-            "fidelity", "Renderer cycles", "simulated ms", "digest", "host s", "cycles per host s"
-        );
+            "fidelity",
+            "Renderer cycles",
+            "simulated ms",
+            "digest",
+            "host s",
+            "cycles per host s"
+        )?;
         for m in results {
-            println!(
+            outln!(
                 "{:<9} {:>16} {:>14.3}  {:<16} {:>12.4} {:>19.2} M",
                 m.fidelity.name(),
                 m.cycles,
@@ -233,13 +239,14 @@ fn print_table(
                 &m.digest[..16],
                 m.host_seconds,
                 m.cycles as f64 / m.host_seconds / 1e6
-            );
+            )?;
         }
     }
     if report.iter().any(|(_, r)| r.len() > 1) {
-        println!(
+        outln!(
             "\nlevels agree on cycles and digest: {}",
             if agree { "yes" } else { "NO (a simulator bug)" }
-        );
+        )?;
     }
+    Ok(())
 }

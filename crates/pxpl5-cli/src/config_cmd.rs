@@ -7,6 +7,7 @@ use pxpl5_config::{ConfigError, MachineConfig};
 use tracing::field;
 
 use crate::UserError;
+use crate::output::{errln, out, outln};
 
 /// The config of `--config FILE`, or the embedded seed machine. Its name and hash are recorded
 /// in the current span (the command's, see `main`).
@@ -28,24 +29,30 @@ pub fn report(e: ConfigError) -> UserError {
     UserError(format!("{:?}", miette::Report::new(e)))
 }
 
+/// Check each file; a failing stdout stops the report, not the checks, whose verdict wins.
 pub fn check(files: &[PathBuf]) -> Result<(), UserError> {
     let mut bad = Vec::new();
+    let mut printed = Ok(());
     for f in files {
         match pxpl5_config::load_file(f) {
-            Ok(cfg) => println!(
-                "{}: ok ({}, hash {})",
-                f.display(),
-                cfg.name,
-                pxpl5_config::config_hash(&cfg)
-            ),
+            Ok(cfg) => {
+                if printed.is_ok() {
+                    printed = outln!(
+                        "{}: ok ({}, hash {})",
+                        f.display(),
+                        cfg.name,
+                        pxpl5_config::config_hash(&cfg)
+                    );
+                }
+            }
             Err(e) => {
-                eprintln!("{}", report(e).0);
+                errln!("{}", report(e).0);
                 bad.push(f.display().to_string());
             }
         }
     }
     if bad.is_empty() {
-        Ok(())
+        printed
     } else {
         Err(UserError(format!(
             "{} of {} config files are invalid: {}",
@@ -58,6 +65,5 @@ pub fn check(files: &[PathBuf]) -> Result<(), UserError> {
 
 pub fn show(file: Option<&Path>) -> Result<(), UserError> {
     let cfg = load(file)?;
-    print!("{}", pxpl5_config::show(&cfg));
-    Ok(())
+    out!("{}", pxpl5_config::show(&cfg))
 }

@@ -5,17 +5,19 @@
 //! fidelity level). With no subcommand it runs `radiosity` with its defaults (the Cornell box, both
 //! methods, on the embedded seed machine), which needs no file.
 //!
-//! Exit codes: 0 success; 2 a user's mistake (bad config, bad flag, unwritable output), reported
-//! with the file, line or field at fault; 1 anything else. The simulator never panics on user
-//! input; a panic is a simulator bug.
+//! Exit codes (`--help` ends with them, [`EXIT_CODES`]): 0 success, also when the reader of
+//! stdout closes it early (see [`output`]); 2 a user's mistake (bad config, bad flag, an output
+//! that cannot be written, stdout included) or a failed simulation, reported with the file, line
+//! or field at fault. The simulator never panics on user input; a panic is a simulator bug.
 //!
 //! Results go to stdout; the simulator's own logs (`-v`, `-q`, `RUST_LOG`: see [`logging`]) and
-//! error messages go to stderr.
+//! error messages go to stderr. Every print goes through [`output`].
 
 mod bench;
 mod choices;
 mod config_cmd;
 mod logging;
+mod output;
 mod radiosity;
 mod run;
 
@@ -24,6 +26,8 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+use crate::output::errln;
+
 /// A cycle-level simulator of Pixel-Planes 5 (UNC, 1989): Graphics Processors on a token ring,
 /// and 128 x 128 bit-serial SIMD Renderers with a quadratic expression evaluator.
 ///
@@ -31,7 +35,7 @@ use clap::{Parser, Subcommand};
 /// factors on the embedded seed machine (TR89-002), beside the seed's estimate; writes
 /// out/radiosity/.
 #[derive(Parser)]
-#[command(name = "pxpl5", version, propagate_version = true)]
+#[command(name = "pxpl5", version, propagate_version = true, after_long_help = EXIT_CODES)]
 struct Cli {
     /// Log more on stderr: -v info (each simulation's start and end), -vv debug, -vvv trace.
     /// Default: warnings and errors. RUST_LOG, when set, overrides -v and -q.
@@ -107,6 +111,17 @@ enum BenchCommand {
     Renderer(bench::RendererArgs),
 }
 
+/// The exit codes, as `--help` ends with them.
+const EXIT_CODES: &str = "\
+Exit codes:
+  0  success; also when the reader of stdout closes it early (`pxpl5 radiosity | head -1`): the
+     rest of the report is dropped quietly, as ripgrep does, since a reader that stops once it
+     has what it wanted is no failure (files are written before the report, so none is lost)
+  2  a user's mistake: a bad config, scene or flag, an output that cannot be written (a
+     directory where a file is expected, a full disk or device, stdout included), or a
+     simulation that failed (a deadlock, a time limit reached), with the file, line or field at
+     fault";
+
 /// A user's mistake: printed, exit code 2.
 pub struct UserError(pub String);
 
@@ -117,14 +132,33 @@ impl<E: std::fmt::Display> From<E> for UserError {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
-    let result = logging::init(cli.verbose, cli.quiet).and_then(|()| run_command(cli.command));
+    let result = match Cli::try_parse() {
+        Ok(cli) => logging::init(cli.verbose, cli.quiet).and_then(|()| run_command(cli.command)),
+        // A usage error, on stderr with exit code 2 (clap ignores a failing stderr).
+        Err(e) if e.use_stderr() => e.exit(),
+        // --help and --version, on stdout like any report.
+        Err(e) => print_help(&e),
+    };
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(UserError(message)) => {
-            eprintln!("{message}");
+            errln!("{message}");
             ExitCode::from(2)
         }
+    }
+}
+
+/// Print clap's `--help` or `--version` text through the one stdout writer, styled as clap would
+/// style it when stdout is a terminal.
+fn print_help(e: &clap::Error) -> Result<(), UserError> {
+    use std::io::IsTerminal;
+    let styled = e.render();
+    let colour = std::io::stdout().is_terminal()
+        && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty());
+    if colour {
+        output::print(format_args!("{}", styled.ansi()))
+    } else {
+        output::print(format_args!("{styled}"))
     }
 }
 

@@ -22,7 +22,8 @@ use pxpl5_radiosity::shot::{FfOptions, Method};
 use crate::UserError;
 use crate::choices::{Delta, DepthArg, EdgeRuleArg, FidelityArg, FormFactorMethod, Methods};
 use crate::config_cmd;
-use crate::run::{TraceArgs, png_bytes, probe_writable, timed, write_atomic};
+use crate::output::{self, out, outln};
+use crate::run::{TraceArgs, png_bytes, timed};
 
 /// Options of `pxpl5 radiosity`.
 #[derive(Args, Clone, Debug)]
@@ -132,7 +133,7 @@ impl RadiosityArgs {
     }
 }
 
-/// Run `method` and write its item buffers and traces; returns the run and its host seconds.
+/// Run `method`; returns the run and its host seconds. Writes nothing.
 fn run_method(
     cfg: &pxpl5_config::MachineConfig,
     patches: &[Patch],
@@ -147,26 +148,26 @@ fn run_method(
     );
     let recorder = args.traces.recorder()?;
     let settings = args.settings(method);
-    let (run, host_seconds) = timed(
+    timed(
         "radiosity",
         settings.run.fidelity,
         || experiment::run(cfg, patches, &settings, recorder),
         |r| r.stats.end,
-    )?;
-    for (shot, views) in &run.item_buffers {
-        for b in views {
-            let path = args
-                .out
-                .join(format!("items-{}-shot{shot}-{}.png", method.name(), b.view));
-            write_atomic(&path, &png_bytes(&picture::item_buffer_picture(b))?)?;
-        }
-    }
-    let several = args.method == Methods::Both;
-    args.traces
-        .write(&run.recorder, |p| per_method(p, method, several))?;
-    Ok((run, host_seconds))
+    )
 }
 
+/// The files of the output directory whose names are known before the run.
+const FILES: [&str; 5] = [
+    "comparison.csv",
+    "comparison.json",
+    "patches.csv",
+    "config.ron",
+    "radiosity.png",
+];
+
+/// Runs every method, renders the picture, and only then writes every output, all or nothing
+/// (`output::write_all`), and prints the report: a failure anywhere leaves the output directory
+/// as it was. Every output whose name is known is checked before the first run.
 pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
     let cfg = config_cmd::load(args.config.as_deref())?;
     let scene: RadiosityScene = match &args.scene {
@@ -174,12 +175,30 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
         None => pxpl5_radiosity::scenes::cornell_box(),
     };
     let patches = mesh(&scene, args.patch_size).map_err(|e| UserError(e.to_string()))?;
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| UserError(format!("--out {}: cannot create: {e}", args.out.display())))?;
-    probe_writable(&args.out)?;
+
+    // Check every destination before the first run.
+    output::check_dir("--out", &args.out)?;
+    let names = match scene.camera {
+        Some(_) => &FILES[..],
+        None => &FILES[..4],
+    };
+    let files = names
+        .iter()
+        .map(|name| output::dest("--out", &args.out.join(name), false))
+        .collect::<Result<Vec<_>, _>>()?;
+    args.traces.recorder()?;
+    let methods = args.method.methods();
+    let several = methods.len() > 1;
+    let traces = methods
+        .iter()
+        .map(|&m| args.traces.dests(|p| per_method(p, m, several), several))
+        .collect::<Result<Vec<_>, _>>()?;
+    output::distinct(files.iter().chain(traces.iter().flat_map(|t| t.iter())))?;
+
+    // Compute everything.
     let mut runs = Vec::new();
     let mut host_seconds = Vec::new();
-    for method in args.method.methods() {
+    for &method in &methods {
         let (run, host) = run_method(&cfg, &patches, args, method)?;
         runs.push(run);
         host_seconds.push(host);
@@ -192,22 +211,21 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
         args.resolution,
         &runs,
     );
-    print!("{}", table(&comparison, &host_seconds));
-    write_atomic(
-        &args.out.join("comparison.csv"),
-        comparison_csv(&comparison).as_bytes(),
-    )?;
-    write_atomic(
-        &args.out.join("comparison.json"),
-        (serde_json::to_string_pretty(&comparison_json(&comparison)).map_err(UserError::from)?
-            + "\n")
-            .as_bytes(),
-    )?;
-    write_atomic(
-        &args.out.join("config.ron"),
-        pxpl5_config::show(&cfg).as_bytes(),
-    )?;
     let last = runs.last().expect("at least one method");
+    let picture = match &scene.camera {
+        Some(camera) => {
+            let (picture, _) = timed(
+                "polygons",
+                RunOptions::default().fidelity,
+                || picture::render(&cfg, &patches, &last.solution, camera.clone()),
+                |r| r.stats.end,
+            )?;
+            Some(png_bytes(&picture.frame)?)
+        }
+        None => None,
+    };
+
+    // Then write it all.
     let mut pcsv = String::from("patch,surface,area,r,g,b\n");
     for (i, (p, b)) in patches.iter().zip(&last.solution.radiosity).enumerate() {
         pcsv += &format!(
@@ -215,20 +233,30 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
             p.surface, p.area, b[0], b[1], b[2]
         );
     }
-    write_atomic(&args.out.join("patches.csv"), pcsv.as_bytes())?;
-    if let Some(camera) = &scene.camera {
-        let (picture, _) = timed(
-            "polygons",
-            RunOptions::default().fidelity,
-            || picture::render(&cfg, &patches, &last.solution, camera.clone()),
-            |r| r.stats.end,
-        )?;
-        write_atomic(&args.out.join("radiosity.png"), &png_bytes(&picture.frame)?)?;
+    let json =
+        serde_json::to_string_pretty(&comparison_json(&comparison)).map_err(UserError::from)?;
+    let mut contents = vec![
+        comparison_csv(&comparison).into_bytes(),
+        (json + "\n").into_bytes(),
+        pcsv.into_bytes(),
+        pxpl5_config::show(&cfg).into_bytes(),
+    ];
+    contents.extend(picture);
+    let mut writes: Vec<_> = files.into_iter().zip(contents).collect();
+    for (run, traces) in runs.iter().zip(&traces) {
+        for (shot, views) in &run.item_buffers {
+            for b in views {
+                let name = format!("items-{}-shot{shot}-{}.png", run.method.name(), b.view);
+                let dest = output::dest("--out", &args.out.join(name), false)?;
+                writes.push((dest, png_bytes(&picture::item_buffer_picture(b))?));
+            }
+        }
+        writes.extend(traces.files(&run.recorder)?);
     }
-    println!(
-        "wrote {}/comparison.csv, comparison.json, patches.csv, config.ron, radiosity.png",
-        args.out.display()
-    );
+    output::write_all(&writes)?;
+
+    out!("{}", table(&comparison, &host_seconds))?;
+    outln!("wrote {}/{}", args.out.display(), names.join(", "))?;
     Ok(())
 }
 
@@ -381,7 +409,7 @@ pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
     let nn = normal.normalize();
     let exact = pxpl5_radiosity::exact::point_to_polygon(point, nn, &polygon);
     let Some(method) = args.method.on_machine() else {
-        println!("exact form factor: {exact:.9}");
+        outln!("exact form factor: {exact:.9}")?;
         return Ok(());
     };
     let cfg = config_cmd::load(args.config.as_deref())?;
@@ -398,7 +426,7 @@ pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
     )?;
     let (f, stats) = (measured.form_factor, &measured.stats);
     let renderer: u64 = stats.renderers.iter().map(|r| r.busy.0).sum();
-    println!(
+    outln!(
         "{} form factor: {f:.9} (exact {exact:.9}, error {:+.3}%)",
         method.name(),
         if exact > 0.0 {
@@ -406,15 +434,15 @@ pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
         } else {
             0.0
         }
-    );
-    println!(
+    )?;
+    outln!(
         "simulated: {:.3} us on {}; Renderer busy {} cycles (all boards); GP 0 busy {} cycles; ring {} payload words",
         stats.end.as_secs_f64() * 1e6,
         cfg.name,
         renderer,
         stats.gps[0].busy.0,
         stats.ring.total.payload_words
-    );
+    )?;
     Ok(())
 }
 

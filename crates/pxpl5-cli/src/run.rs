@@ -2,10 +2,9 @@
 //! stats as JSON (and a table on stdout), the effective config with its hash, and on request a
 //! Chrome trace and a VCD of simulated time.
 //!
-//! Nothing is half-written: the output directory is checked before the run, and every file is
-//! written to a temporary name and renamed into place.
+//! Nothing is half-written: every output is checked before the run and written after it
+//! (`output::write_all`).
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -22,6 +21,7 @@ use pxpl5_trace::{TraceWindow, parse_time};
 use crate::UserError;
 use crate::choices::{FidelityArg, ProgramArg};
 use crate::config_cmd;
+use crate::output::{self, Dest, out, outln};
 
 /// Options of `pxpl5 run`.
 #[derive(Args, Clone, Debug)]
@@ -67,14 +67,14 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
     let fidelity = Fidelity::from(args.fidelity);
 
     // Check every destination before spending time on the run.
-    std::fs::create_dir_all(&args.out).map_err(|e| {
-        UserError(format!(
-            "--out {}: cannot create the directory: {e}",
-            args.out.display()
-        ))
-    })?;
-    probe_writable(&args.out)?;
+    output::check_dir("--out", &args.out)?;
+    let dests = ["stats.json", "config.ron", "frame.png"]
+        .iter()
+        .map(|name| output::dest("--out", &args.out.join(name), false))
+        .collect::<Result<Vec<_>, _>>()?;
     let recorder = args.traces.recorder()?;
+    let traces = args.traces.dests(Path::to_path_buf, false)?;
+    output::distinct(dests.iter().chain(traces.iter()))?;
 
     let program = Polygons::new(scene);
     let options = RunOptions { fidelity, max_time };
@@ -83,34 +83,35 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
     let stats = &result.stats;
     let mut json = serde_json::to_string_pretty(&stats.to_json()).map_err(UserError::from)?;
     json.push('\n');
-    write_atomic(&args.out.join("stats.json"), json.as_bytes())?;
-    write_atomic(
-        &args.out.join("config.ron"),
-        pxpl5_config::show(&cfg).as_bytes(),
-    )?;
-    write_atomic(&args.out.join("frame.png"), &png_bytes(&result.frame)?)?;
-    args.traces.write(&result.recorder, |p| p.to_path_buf())?;
+    let contents = [
+        json.into_bytes(),
+        pxpl5_config::show(&cfg).into_bytes(),
+        png_bytes(&result.frame)?,
+    ];
+    let mut files: Vec<_> = dests.into_iter().zip(contents).collect();
+    files.extend(traces.files(&result.recorder)?);
+    output::write_all(&files)?;
 
-    print!("{}", stats.table());
+    out!("{}", stats.table())?;
     let triangles = program.scene().triangles.len();
     let seconds = stats.end.as_secs_f64();
-    println!(
+    outln!(
         "\n{triangles} triangles in {:.3} ms simulated: {:.0} triangles per simulated second \
          (the paper's design goal: 1,000,000 Phong-shaded triangles/s for the whole machine; this \
          program shades Gouraud, three linear expressions per triangle, and its time includes \
          reading every region back to the frame buffer)",
         seconds * 1e3,
         triangles as f64 / seconds
-    );
+    )?;
     let renderer_cycles: u64 = stats.renderers.iter().map(|r| r.busy.0 + r.idle.0).sum();
-    println!(
+    outln!(
         "host: {host_seconds:.3} s, {:.2} M simulated Renderer cycles per host second (all boards)",
         renderer_cycles as f64 / host_seconds / 1e6
-    );
-    println!(
+    )?;
+    outln!(
         "wrote {}/frame.png, stats.json, config.ron",
         args.out.display()
-    );
+    )?;
     Ok(())
 }
 
@@ -156,13 +157,15 @@ pub fn timed<T>(
 /// The trace options every simulating subcommand takes.
 #[derive(Args, Clone, Debug)]
 pub struct TraceArgs {
-    /// Write a Chrome trace (JSON, opens in Perfetto) of simulated time to FILE. When a command
-    /// runs several machines (radiosity --method both), each run's name goes before the
-    /// extension: t.hemisphere.json, t.hemicube.json.
-    #[arg(long)]
+    /// Write a Chrome trace (JSON, opens in Perfetto) of simulated time to FILE; `-` is stdout
+    /// (the report then goes to stderr). When a command runs several machines (radiosity
+    /// --method both), each run's name goes before the extension: t.hemisphere.json,
+    /// t.hemicube.json. A FIFO or device is written through, a symlink kept.
+    #[arg(long, value_name = "FILE")]
     pub trace: Option<PathBuf>,
-    /// Write a VCD (GTKWave, Surfer) of simulated time to FILE (named as for --trace).
-    #[arg(long)]
+    /// Write a VCD (GTKWave, Surfer) of simulated time to FILE (named as for --trace; `-` is
+    /// stdout).
+    #[arg(long, value_name = "FILE")]
     pub vcd: Option<PathBuf>,
     /// Limit --trace and --vcd to a window of simulated time, e.g. 0..2ms or 1.5us..3us.
     #[arg(long, value_name = "START..END")]
@@ -170,8 +173,7 @@ pub struct TraceArgs {
 }
 
 impl TraceArgs {
-    /// The recorder of one run, after checking the window and that the trace files can be
-    /// written: both fail before any simulation.
+    /// The recorder of one run, after checking the window: fails before any simulation.
     pub fn recorder(&self) -> Result<Recorder, UserError> {
         let window = match &self.trace_window {
             Some(w) => {
@@ -179,57 +181,66 @@ impl TraceArgs {
             }
             None => TraceWindow::all(),
         };
-        for f in [&self.trace, &self.vcd].into_iter().flatten() {
-            let dir = f
-                .parent()
-                .filter(|p| !p.as_os_str().is_empty())
-                .unwrap_or(Path::new("."));
-            probe_writable(dir)?;
-        }
         Ok(Recorder::new(
             self.trace.as_ref().map(|_| window),
             self.vcd.as_ref().map(|_| window),
         ))
     }
 
-    /// Write a finished run's traces, each to `name(path given)`.
-    pub fn write(
+    /// Where the traces of one run go, each at `name(path given)`, checked before the run
+    /// (`output::dest`). `-` is stdout, unless `several` runs each write their own.
+    pub fn dests(
         &self,
-        recorder: &Recorder,
         name: impl Fn(&Path) -> PathBuf,
-    ) -> Result<(), UserError> {
-        if let Some(path) = &self.trace {
-            let mut bytes = Vec::new();
-            recorder.write_chrome(&mut bytes).map_err(UserError::from)?;
-            write_atomic(&name(path), &bytes)?;
-        }
-        if let Some(path) = &self.vcd {
-            let mut bytes = Vec::new();
-            recorder.write_vcd(&mut bytes).map_err(UserError::from)?;
-            write_atomic(&name(path), &bytes)?;
-        }
-        Ok(())
+        several: bool,
+    ) -> Result<TraceDests, UserError> {
+        let one = |flag: &str, path: &Option<PathBuf>| {
+            path.as_ref()
+                .map(|p| {
+                    if several && p.as_os_str() == "-" {
+                        return Err(UserError(format!(
+                            "{flag} -: each run writes its own trace, to FILE.RUN.EXT; name a \
+                             file, not stdout"
+                        )));
+                    }
+                    output::dest(flag, &name(p), true)
+                })
+                .transpose()
+        };
+        Ok(TraceDests {
+            trace: one("--trace", &self.trace)?,
+            vcd: one("--vcd", &self.vcd)?,
+        })
     }
 }
 
-/// Fail early, with the path, if `dir` cannot take a file.
-pub fn probe_writable(dir: &Path) -> Result<(), UserError> {
-    let probe = dir.join(format!(".pxpl5-probe-{}", std::process::id()));
-    std::fs::write(&probe, b"")
-        .and_then(|_| std::fs::remove_file(&probe))
-        .map_err(|e| UserError(format!("{}: cannot write output here: {e}", dir.display())))
+/// Where one run's traces go.
+pub struct TraceDests {
+    trace: Option<Dest>,
+    vcd: Option<Dest>,
 }
 
-/// Write `bytes` to a temporary file beside `path`, then rename it into place.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), UserError> {
-    let tmp = path.with_extension(format!("tmp-{}", std::process::id()));
-    let result = std::fs::File::create(&tmp)
-        .and_then(|mut f| f.write_all(bytes).and_then(|_| f.sync_all()))
-        .and_then(|_| std::fs::rename(&tmp, path));
-    result.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        UserError(format!("{}: cannot write: {e}", path.display()))
-    })
+impl TraceDests {
+    /// The destinations of the traces asked for.
+    pub fn iter(&self) -> impl Iterator<Item = &Dest> {
+        self.trace.iter().chain(&self.vcd)
+    }
+
+    /// A finished run's trace files: where each goes and its bytes.
+    pub fn files(&self, recorder: &Recorder) -> Result<Vec<(Dest, Vec<u8>)>, UserError> {
+        let mut files = Vec::new();
+        if let Some(dest) = &self.trace {
+            let mut bytes = Vec::new();
+            recorder.write_chrome(&mut bytes).map_err(UserError::from)?;
+            files.push((dest.clone(), bytes));
+        }
+        if let Some(dest) = &self.vcd {
+            let mut bytes = Vec::new();
+            recorder.write_vcd(&mut bytes).map_err(UserError::from)?;
+            files.push((dest.clone(), bytes));
+        }
+        Ok(files)
+    }
 }
 
 /// The frame as an 8-bit RGB PNG.

@@ -1,8 +1,9 @@
 //! The `pxpl5` command as a user runs it: exit codes, messages naming file, line and field, and
 //! the benchmark's agreement between fidelity levels.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
 
 fn pxpl5(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_pxpl5"))
@@ -453,4 +454,448 @@ fn logs_go_to_stderr_at_the_level_asked_and_leave_stdout_alone() {
     );
     let both = run_small_logged(&d, &["-v", "-q"], None);
     assert_eq!(both.status.code(), Some(2));
+}
+
+/// `pxpl5 ARGS` with stdout `stdout`.
+fn pxpl5_to(args: &[&str], stdout: impl Into<Stdio>) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pxpl5"))
+        .args(args)
+        .current_dir(root())
+        .stdout(stdout)
+        .output()
+        .expect("pxpl5 runs")
+}
+
+/// `pxpl5 ARGS` writing to a pipe whose reader is already closed: its first write to stdout
+/// fails with EPIPE, whatever the timing.
+fn pxpl5_closed_stdout(args: &[&str]) -> Output {
+    let (reader, writer) = std::io::pipe().expect("a pipe");
+    drop(reader);
+    pxpl5_to(args, writer)
+}
+
+/// A small radiosity run (one hemisphere shot of the Cornell box in big patches) writing to `out`.
+fn radiosity_small(out: &Path) -> Vec<String> {
+    [
+        "radiosity",
+        "--method",
+        "hemisphere",
+        "--shots",
+        "1",
+        "--patch-size",
+        "400",
+        "--resolution",
+        "16",
+        "--out",
+        out.to_str().unwrap(),
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
+fn no_panic(out: &Output) {
+    let err = text(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_ne!(out.status.code(), Some(101), "{err}");
+}
+
+#[test]
+fn a_closed_stdout_ends_quietly_with_exit_code_0() {
+    let out_d = out_dir("closed-stdout");
+    let radiosity = radiosity_small(&out_d);
+    let run_d = out_dir("closed-stdout-run");
+    let run = [
+        "run",
+        "--config",
+        "machine-configs/minimal.ron",
+        "--scene",
+        "programs/polygons/scenes/small.ron",
+        "--out",
+        run_d.to_str().unwrap(),
+    ];
+    let square = "-1,-1,1;1,-1,1;1,1,1;-1,1,1";
+    let formfactor = [
+        "formfactor",
+        "--point",
+        "0,0,0",
+        "--normal",
+        "0,0,1",
+        "--polygon",
+        square,
+    ];
+    let bench = [
+        "bench",
+        "renderer",
+        "--method",
+        "hemisphere",
+        "--fidelity",
+        "integer",
+        "--shots",
+        "1",
+        "--resolution",
+        "16",
+        "--repeat",
+        "1",
+    ];
+    let commands: Vec<Vec<&str>> = vec![
+        vec!["config", "show"],
+        vec!["config", "check", "machine-configs/minimal.ron"],
+        vec!["--help"],
+        vec!["--version"],
+        formfactor.to_vec(),
+        bench.to_vec(),
+        run.to_vec(),
+        radiosity.iter().map(String::as_str).collect(),
+    ];
+    for args in &commands {
+        let out = pxpl5_closed_stdout(args);
+        no_panic(&out);
+        assert_eq!(
+            out.status.code(),
+            Some(0),
+            "{args:?}: {}",
+            text(&out.stderr)
+        );
+        assert_eq!(text(&out.stderr), "", "{args:?}: a closed pipe is quiet");
+    }
+    // Only the report is lost: the files are whole.
+    assert!(run_d.join("frame.png").exists());
+    assert!(out_d.join("radiosity.png").exists());
+
+    // A closed stdout does not hide a failed check: the verdict is the exit code.
+    let bad = temp_file("closed-bad.ron", "(name: \"bad\")");
+    let out = pxpl5_closed_stdout(&[
+        "config",
+        "check",
+        "machine-configs/minimal.ron",
+        bad.to_str().unwrap(),
+    ]);
+    no_panic(&out);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("closed-bad.ron"));
+
+    // As `pxpl5 radiosity | head -1` does it: one line read, then the reader closed.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pxpl5"))
+        .args(&radiosity)
+        .current_dir(root())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("pxpl5 runs");
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.starts_with("Progressive radiosity"), "{first}");
+    let out = child.wait_with_output().unwrap();
+    no_panic(&out);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+}
+
+#[test]
+fn a_full_stdout_is_an_error_naming_stdout() {
+    if !Path::new("/dev/full").exists() {
+        return;
+    }
+    let full = || {
+        std::fs::OpenOptions::new()
+            .write(true)
+            .open("/dev/full")
+            .unwrap()
+    };
+    let square = "-1,-1,1;1,-1,1;1,1,1;-1,1,1";
+    let out_d = out_dir("full-stdout");
+    let radiosity = radiosity_small(&out_d);
+    let commands: Vec<Vec<&str>> = vec![
+        vec!["config", "show"],
+        vec!["config", "check", "machine-configs/minimal.ron"],
+        vec!["--help"],
+        vec![
+            "formfactor",
+            "--point",
+            "0,0,0",
+            "--normal",
+            "0,0,1",
+            "--polygon",
+            square,
+        ],
+        radiosity.iter().map(String::as_str).collect(),
+    ];
+    for args in &commands {
+        let out = pxpl5_to(args, full());
+        no_panic(&out);
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{args:?}: {}",
+            text(&out.stderr)
+        );
+        let err = text(&out.stderr);
+        assert!(err.starts_with("stdout: cannot write: "), "{args:?}: {err}");
+    }
+}
+
+/// `pxpl5 run` of the small scene on the minimal machine into `out`, with `extra` flags.
+fn run_small_with(out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "run",
+        "--config",
+        "machine-configs/minimal.ron",
+        "--scene",
+        "programs/polygons/scenes/small.ron",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    pxpl5(&args)
+}
+
+fn assert_chrome_trace(bytes: &[u8]) {
+    let trace: serde_json::Value = serde_json::from_slice(bytes).expect("a Chrome trace");
+    assert!(trace["traceEvents"].as_array().unwrap().len() > 50);
+}
+
+#[cfg(unix)]
+#[test]
+fn a_fifo_output_is_written_through_and_stays_a_fifo() {
+    use std::os::unix::fs::FileTypeExt;
+    let d = out_dir("fifo");
+    std::fs::create_dir_all(&d).unwrap();
+    let fifo = d.join("trace.fifo");
+    let made = Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        return; // no mkfifo on this host
+    }
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read(fifo).unwrap())
+    };
+    let out = run_small_with(&d.join("out"), &["--trace", fifo.to_str().unwrap()]);
+    // Should pxpl5 not have opened the FIFO, open it as a writer (read-write does not block on
+    // Linux) so that the reader sees its end instead of waiting forever.
+    drop(
+        std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .open(&fifo),
+    );
+    let bytes = reader.join().unwrap();
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let kind = std::fs::symlink_metadata(&fifo).unwrap().file_type();
+    assert!(kind.is_fifo(), "the FIFO was replaced: {kind:?}");
+    assert_chrome_trace(&bytes);
+}
+
+#[cfg(unix)]
+#[test]
+fn a_symlink_output_stays_a_symlink_and_a_device_a_device() {
+    use std::os::unix::fs::FileTypeExt;
+    let d = out_dir("symlink");
+    std::fs::create_dir_all(&d).unwrap();
+    let real = d.join("real.json");
+    std::fs::write(&real, "old").unwrap();
+    let link = d.join("link.json");
+    // Relative to the link's directory, not to pxpl5's.
+    std::os::unix::fs::symlink("real.json", &link).unwrap();
+    let out = run_small_with(
+        &d.join("out"),
+        &["--trace", link.to_str().unwrap(), "--vcd", "/dev/null"],
+    );
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let kind = std::fs::symlink_metadata(&link).unwrap().file_type();
+    assert!(kind.is_symlink(), "the symlink was replaced: {kind:?}");
+    assert_eq!(std::fs::read_link(&link).unwrap(), Path::new("real.json"));
+    assert_chrome_trace(&std::fs::read(&real).unwrap());
+    let null = std::fs::metadata("/dev/null").unwrap().file_type();
+    assert!(null.is_char_device(), "{null:?}");
+    // /dev/stdout links to /proc/self/fd/1, which names a pipe here, not a path to follow.
+    if Path::new("/dev/stdout").exists() {
+        let out = run_small_with(&d.join("out"), &["--trace", "/dev/stdout"]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        assert!(text(&out.stdout).starts_with("{\"displayTimeUnit\""));
+    }
+}
+
+#[test]
+fn a_directory_given_for_a_file_fails_before_the_run() {
+    let d = out_dir("trace-dir");
+    let dir = d.join("some/dir");
+    std::fs::create_dir_all(&dir).unwrap();
+    let out_d = d.join("out");
+    for flag in ["--trace", "--vcd"] {
+        let out = run_small_with(&out_d, &[flag, dir.to_str().unwrap()]);
+        assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+        let err = text(&out.stderr);
+        assert!(
+            err.contains(flag) && err.contains("is a directory"),
+            "{err}"
+        );
+        assert!(!err.contains("simulation"), "{err}");
+        assert!(!out_d.exists(), "{flag}: something was written");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+    }
+    // A directory where run writes one of its own files.
+    std::fs::create_dir_all(out_d.join("stats.json")).unwrap();
+    let out = run_small_with(&out_d, &[]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("stats.json: is a directory"));
+    assert_eq!(std::fs::read_dir(&out_d).unwrap().count(), 1);
+}
+
+#[test]
+fn a_dash_sends_a_trace_to_stdout_and_the_report_to_stderr() {
+    let d = out_dir("dash");
+    let out = run_small_with(&d, &["--trace", "-"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert_chrome_trace(&out.stdout);
+    assert!(text(&out.stderr).contains("triangles per simulated second"));
+    assert!(!d.join("-").exists());
+    // Two runs cannot share stdout.
+    let out = pxpl5(&["radiosity", "--trace", "-", "--out", d.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("--trace -"));
+}
+
+/// The seed machine with a 1 kHz Renderer clock: radiosity's form-factor runs fit their limit
+/// (1,000 s simulated), the picture's render does not (10 s), so it fails after everything else
+/// was computed.
+fn slow_renderer_config() -> PathBuf {
+    let seed = std::fs::read_to_string(root().join("machine-configs/seed-tr89-002.ron")).unwrap();
+    let clock = "clock_hz: 40_000_000, // [paper]";
+    assert_eq!(
+        seed.matches(clock).count(),
+        1,
+        "the Renderer clock's line moved"
+    );
+    temp_file(
+        "slow-renderer.ron",
+        &seed.replace(clock, "clock_hz: 1_000, // [paper]"),
+    )
+}
+
+/// The names and contents of the files of `dir`, sorted.
+fn listing(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut files: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let e = e.unwrap();
+            (
+                e.file_name().to_string_lossy().into_owned(),
+                std::fs::read(e.path()).unwrap(),
+            )
+        })
+        .collect();
+    files.sort();
+    files
+}
+
+#[test]
+fn a_failed_run_leaves_the_output_directory_as_it_found_it() {
+    let config = slow_renderer_config();
+    // A directory that does not exist stays absent; one that exists keeps its files, unchanged.
+    let absent = out_dir("failed-absent").join("out");
+    let present = out_dir("failed-present");
+    std::fs::create_dir_all(&present).unwrap();
+    std::fs::write(present.join("keep.txt"), "mine").unwrap();
+    std::fs::write(present.join("comparison.csv"), "old").unwrap();
+    let before = listing(&present);
+    for out_d in [&absent, &present] {
+        // Both methods run, with item buffers and traces; the picture's render fails last.
+        let out = pxpl5(&[
+            "radiosity",
+            "--config",
+            config.to_str().unwrap(),
+            "--shots",
+            "1",
+            "--patch-size",
+            "400",
+            "--resolution",
+            "16",
+            "--item-buffers",
+            "0",
+            "--out",
+            out_d.to_str().unwrap(),
+            "--trace",
+            out_d.join("t.json").to_str().unwrap(),
+        ]);
+        no_panic(&out);
+        let err = text(&out.stderr);
+        assert!(matches!(out.status.code(), Some(1 | 2)), "{err}");
+        assert!(err.contains("time limit"), "{err}");
+        assert_eq!(text(&out.stdout), "", "a failed run prints no report");
+    }
+    assert!(
+        !absent.exists(),
+        "a failed run created its output directory"
+    );
+    assert_eq!(listing(&present), before);
+
+    // `run` past its --max-time.
+    let run_d = out_dir("failed-run");
+    let out = run_small_with(
+        &run_d,
+        &[
+            "--max-time",
+            "1us",
+            "--trace",
+            run_d.join("t.json").to_str().unwrap(),
+        ],
+    );
+    no_panic(&out);
+    assert!(
+        matches!(out.status.code(), Some(1 | 2)),
+        "{}",
+        text(&out.stderr)
+    );
+    assert!(!run_d.exists(), "a failed run wrote {:?}", listing(&run_d));
+}
+
+#[test]
+fn a_failed_write_takes_back_the_files_written_before_it() {
+    if !Path::new("/dev/full").exists() {
+        return;
+    }
+    // The trace goes to stdout, which is full: stats.json, config.ron and frame.png were staged
+    // before it and must not appear.
+    let run_d = out_dir("failed-write");
+    let full = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/full")
+        .unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_pxpl5"))
+        .args([
+            "run",
+            "--config",
+            "machine-configs/minimal.ron",
+            "--scene",
+            "programs/polygons/scenes/small.ron",
+            "--out",
+            run_d.join("new/dirs").to_str().unwrap(),
+            "--trace",
+            "-",
+        ])
+        .current_dir(root())
+        .stdout(full)
+        .output()
+        .unwrap();
+    no_panic(&out);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("stdout: cannot write"));
+    assert!(!run_d.exists(), "left behind: {:?}", listing(&run_d));
+}
+
+#[test]
+fn two_outputs_to_one_file_fail_before_the_run() {
+    let d = out_dir("twice");
+    let out = run_small_with(&d, &["--trace", d.join("stats.json").to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("two outputs"),
+        "{}",
+        text(&out.stderr)
+    );
+    let out = run_small_with(&d, &["--trace", "-", "--vcd", "-"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("stdout: two outputs"));
+    assert!(!d.exists());
 }
