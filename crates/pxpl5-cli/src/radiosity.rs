@@ -11,13 +11,15 @@ use std::path::{Path, PathBuf};
 
 use clap::Args;
 use pxpl5_geom::DVec3;
+use pxpl5_geom::convex::Corner;
+use pxpl5_geom::polygon::{self, Problem};
 use pxpl5_machine::RunOptions;
 use pxpl5_radiosity::comparison::{Comparison, SEED_RATIO};
 use pxpl5_radiosity::experiment::{self, MethodRun, Settings};
 use pxpl5_radiosity::mesh::{Patch, mesh};
 use pxpl5_radiosity::picture;
 use pxpl5_radiosity::scene::RadiosityScene;
-use pxpl5_radiosity::shot::{FfOptions, Method};
+use pxpl5_radiosity::shot::{FfOptions, Method, check_resolution};
 
 use crate::UserError;
 use crate::choices::{Delta, DepthArg, EdgeRuleArg, FidelityArg, FormFactorMethod, Methods};
@@ -312,23 +314,34 @@ fn comparison_json(c: &Comparison) -> serde_json::Value {
     })
 }
 
+/// The largest `formfactor --resolution`: 2^12, the pixel addresses of the default QEE
+/// (`renderer.qee.coordinate_bits`). It also bounds the host's table of a view's delta form
+/// factors, N x N f64 values, at 128 MiB.
+const MAX_RESOLUTION: i64 = 4096;
+
 /// Options of `pxpl5 formfactor`.
 #[derive(Args, Clone, Debug)]
 pub struct FormFactorArgs {
     /// The receiving point, X,Y,Z.
     #[arg(long, allow_hyphen_values = true)]
     pub point: String,
-    /// Its normal, X,Y,Z (need not be unit length).
+    /// Its normal, X,Y,Z: only its direction is used, so any length from f64::MIN_POSITIVE
+    /// (about 2.2e-308) up will do; zero and shorter (subnormal) vectors are refused.
     #[arg(long, allow_hyphen_values = true)]
     pub normal: String,
-    /// The polygon's vertices, "X,Y,Z;X,Y,Z;..." (planar, convex, 3 or more).
+    /// The polygon's vertices, "X,Y,Z;X,Y,Z;..." (3 or more, planar and convex, in either
+    /// order; messages number them from 0). Checked as the radiosity scene files are: within
+    /// 1e-6 x its size of a plane, no repeated, collinear or reflex corner, edges not crossing.
     #[arg(long, allow_hyphen_values = true)]
     pub polygon: String,
     /// exact (the contour formula), hemisphere or hemicube (on the simulated machine).
     #[arg(long, value_enum, default_value_t = FormFactorMethod::Exact)]
     pub method: FormFactorMethod,
-    /// Pixels across the disk or the hemicube's top face.
-    #[arg(long, default_value_t = 128)]
+    /// Pixels across the disk or the hemicube's top face, 1 to 4096; the machine limits it
+    /// further (a disk of N pixels needs ceil(N / 128)^2 Renderers of 128 x 128; a hemicube
+    /// face must fit one Renderer, and N must be even).
+    #[arg(long, default_value_t = 128,
+          value_parser = clap::value_parser!(u32).range(1..=MAX_RESOLUTION))]
     pub resolution: u32,
     /// Machine config (RON); default: the embedded seed machine.
     #[arg(long)]
@@ -351,16 +364,109 @@ fn parse_v3(what: &str, s: &str) -> Result<DVec3, UserError> {
     Ok(DVec3::from_array(v))
 }
 
-pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
+/// The unit normal of `--normal` (`text` as given), or why it has no usable direction.
+fn unit_normal(text: &str, normal: DVec3) -> Result<DVec3, UserError> {
+    if normal == DVec3::ZERO {
+        return Err(UserError(
+            "--normal: must not be zero (only its direction is used, and zero has none)".into(),
+        ));
+    }
+    pxpl5_radiosity::exact::unit_normal(normal).ok_or_else(|| {
+        UserError(format!(
+            "--normal: `{text}` is too short: its length must be at least f64::MIN_POSITIVE \
+             ({:e}); a shorter vector is made of subnormal numbers, whose direction is not known \
+             to f64 precision (only the direction is used: scale it up)",
+            f64::MIN_POSITIVE
+        ))
+    })
+}
+
+/// Every problem of `--polygon` as a planar convex polygon, a line each naming the vertex (as
+/// the user wrote it, `texts[k]`) where there is one; empty when it is fine.
+///
+/// The check runs on the polygon divided by a power of two ([`polygon::power_of_two_scale`]),
+/// which gives the same verdict without overflowing for huge or tiny coordinates; distances are
+/// reported in the user's units.
+fn polygon_problems(texts: &[&str], v: &[DVec3]) -> Vec<String> {
+    let s = polygon::power_of_two_scale(v);
+    let scaled: Vec<DVec3> = v.iter().map(|&p| p / s).collect();
+    let n = v.len();
+    let at = |k: usize| format!("--polygon vertex {k} `{}`", texts[k].trim());
+    let corner = |c: Corner| match c {
+        Corner::Repeat(k) => format!(
+            "{}: repeats vertex {k} (consecutive vertices must be more than {:e} x the \
+             polygon's size apart)",
+            at((k + 1) % n),
+            polygon::ZERO_AREA
+        ),
+        Corner::Straight(k) => format!(
+            "{}: is collinear with vertices {} and {}: remove it (a straight corner has no \
+             defined turn)",
+            at(k),
+            (k + n - 1) % n,
+            (k + 1) % n
+        ),
+        Corner::Reflex(k) => format!(
+            "{}: makes the polygon non-convex (its corner turns against the others, or folds \
+             back)",
+            at(k)
+        ),
+    };
+    let mut out = Vec::new();
+    for problem in polygon::problems(&scaled) {
+        match problem {
+            // Excluded by the parser: 3 or more finite vertices.
+            Problem::NotAPolygon => out.push("--polygon: needs 3 or more finite vertices".into()),
+            Problem::ZeroArea => {
+                out.push(
+                    "--polygon: has zero area (coincident or collinear vertices, or edges that \
+                     cross so that its parts cancel, as a bow-tie's do)"
+                        .into(),
+                );
+                out.extend(polygon::zero_area_corners(&scaled).into_iter().map(corner));
+            }
+            Problem::NotPlanar {
+                vertex,
+                distance,
+                limit,
+            } => out.push(format!(
+                "{}: is {:e} from the polygon's best-fit plane, more than {:e} x its size ({:e}): \
+                 the polygon must be planar",
+                at(vertex),
+                distance * s,
+                polygon::PLANARITY_TOLERANCE,
+                limit * s
+            )),
+            Problem::Corner(c) => out.push(corner(c)),
+            Problem::Crossed { turns } => out.push(format!(
+                "--polygon: is not convex: its edges cross (the outline winds around {turns:.1} \
+                 times, not once)"
+            )),
+        }
+    }
+    out
+}
+
+/// The inputs of `pxpl5 formfactor`, parsed and checked.
+struct Given {
+    point: DVec3,
+    normal: DVec3,
+    unit_normal: DVec3,
+    polygon: Vec<DVec3>,
+}
+
+/// Parse and check `--point`, `--normal` and `--polygon`.
+fn given(args: &FormFactorArgs) -> Result<Given, UserError> {
     let point = parse_v3("--point", &args.point)?;
     let normal = parse_v3("--normal", &args.normal)?;
-    if normal == DVec3::ZERO {
-        return Err(UserError("--normal: must not be zero".into()));
-    }
-    let polygon: Vec<DVec3> = args
+    let unit_normal = unit_normal(&args.normal, normal)?;
+    let texts: Vec<&str> = args
         .polygon
         .split(';')
         .filter(|s| !s.trim().is_empty())
+        .collect();
+    let polygon: Vec<DVec3> = texts
+        .iter()
         .enumerate()
         .map(|(i, s)| parse_v3(&format!("--polygon vertex {i}"), s))
         .collect::<Result<_, _>>()?;
@@ -370,13 +476,28 @@ pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
             polygon.len()
         )));
     }
-    let nn = normal.normalize();
-    let exact = pxpl5_radiosity::exact::point_to_polygon(point, nn, &polygon);
+    let problems = polygon_problems(&texts, &polygon);
+    if !problems.is_empty() {
+        return Err(UserError(problems.join("\n")));
+    }
+    Ok(Given {
+        point,
+        normal,
+        unit_normal,
+        polygon,
+    })
+}
+
+pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
+    let given = given(args)?;
+    let exact = pxpl5_radiosity::exact::point_to_polygon(given.point, given.normal, &given.polygon);
     let Some(method) = args.method.on_machine() else {
         println!("exact form factor: {exact:.9}");
         return Ok(());
     };
     let cfg = config_cmd::load(args.config.as_deref())?;
+    check_resolution(method, args.resolution, cfg.renderer.count, &cfg.renderer)
+        .map_err(|e| UserError(format!("--resolution {}: {e}", args.resolution)))?;
     let options = FfOptions {
         method,
         resolution: args.resolution,
@@ -385,7 +506,15 @@ pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
     let (measured, _) = timed(
         "formfactor",
         RunOptions::default().fidelity,
-        || experiment::form_factor(&cfg, point, nn, polygon, options),
+        || {
+            experiment::form_factor(
+                &cfg,
+                given.point,
+                given.unit_normal,
+                given.polygon.clone(),
+                options,
+            )
+        },
         |r| r.stats.end,
     )?;
     let (f, stats) = (measured.form_factor, &measured.stats);

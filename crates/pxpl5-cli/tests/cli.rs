@@ -373,6 +373,208 @@ fn formfactor_exact_and_on_the_machine() {
     assert!(text(&out.stderr).contains("--point"));
 }
 
+/// The square of side 2 at height 1 above the origin, as `--polygon` takes it.
+const SQUARE: &str = "-1,-1,1;1,-1,1;1,1,1;-1,1,1";
+
+/// `pxpl5 formfactor` from the origin, normal `normal`, to `polygon`, with `more` flags.
+fn formfactor(normal: &str, polygon: &str, more: &[&str]) -> Output {
+    let mut args = vec![
+        "formfactor",
+        "--point",
+        "0,0,0",
+        "--normal",
+        normal,
+        "--polygon",
+        polygon,
+    ];
+    args.extend(more);
+    pxpl5(&args)
+}
+
+/// The square's corners as vectors, scaled by `s`.
+fn square_points(s: f64) -> Vec<pxpl5_geom::DVec3> {
+    SQUARE
+        .split(';')
+        .map(|v| {
+            let c: Vec<f64> = v
+                .split(',')
+                .map(|x| x.parse::<f64>().unwrap() * s)
+                .collect();
+            pxpl5_geom::DVec3::new(c[0], c[1], c[2])
+        })
+        .collect()
+}
+
+#[test]
+fn formfactor_refuses_polygons_that_are_not_planar_and_convex() {
+    let cases: [(&str, &str, &[&str]); 8] = [
+        // The bow-tie (it printed 0.1416 against an exact 0).
+        (
+            "bow-tie",
+            "0,0,1;1,1,1;1,0,1;0,1,1",
+            &["zero area", "bow-tie", "vertex 1 `1,1,1`", "non-convex"],
+        ),
+        (
+            "asymmetric bow-tie",
+            "0,0,1;3,1,1;3,0,1;0,2,1",
+            &["vertex 1 `3,1,1`", "non-convex"],
+        ),
+        (
+            "collinear triangle",
+            "0,0,1;1,0,1;2,0,1",
+            &["zero area", "vertex 1 `1,0,1`: is collinear"],
+        ),
+        (
+            "collinear vertex",
+            "0,0,1;1,0,1;2,0,1;0,1,1",
+            &["vertex 1 `1,0,1`: is collinear with vertices 0 and 2"],
+        ),
+        (
+            "repeated vertex",
+            "0,0,1;1,0,1;1,0,1;0,1,1",
+            &["vertex 2 `1,0,1`: repeats vertex 1"],
+        ),
+        (
+            "non-planar",
+            "0,0,1;1,0,1;1,1,1.004;0,1,1",
+            &["best-fit plane", "1e-6 x its size", "must be planar"],
+        ),
+        (
+            "reflex corner",
+            "0,0,1;2,0,1;1,0.5,1;1,2,1",
+            &["vertex 2 `1,0.5,1`: makes the polygon non-convex"],
+        ),
+        (
+            "pentagram",
+            "1,0,1;-0.809,0.588,1;0.309,-0.951,1;0.309,0.951,1;-0.809,-0.588,1",
+            &["edges cross", "2.0 times"],
+        ),
+    ];
+    for (name, polygon, wanted) in cases {
+        for method in ["exact", "hemisphere"] {
+            let out = formfactor("0,0,1", polygon, &["--method", method]);
+            assert_eq!(out.status.code(), Some(2), "{name}: {}", text(&out.stdout));
+            assert_eq!(text(&out.stdout), "", "{name}");
+            let err = text(&out.stderr);
+            assert!(err.starts_with("--polygon"), "{name}: {err}");
+            for w in wanted {
+                assert!(err.contains(w), "{name}: no {w:?} in {err}");
+            }
+        }
+    }
+    // Clockwise is as good as counter-clockwise, and within 1e-6 of planar is planar.
+    for polygon in [
+        "-1,1,1;1,1,1;1,-1,1;-1,-1,1",
+        "-1,-1,1;1,-1,1;1,1,1.000001;-1,1,1",
+    ] {
+        let out = formfactor("0,0,1", polygon, &[]);
+        assert!(out.status.success(), "{polygon}: {}", text(&out.stderr));
+    }
+}
+
+#[test]
+fn formfactor_normals_need_a_direction() {
+    let refused = [
+        ("0,0,0", "must not be zero"),
+        ("0,0,1e-310", "too short"),
+        ("1e-308,1e-308,1e-308", "f64::MIN_POSITIVE"),
+        ("0,0,inf", "finite"),
+        ("0,0,nan", "finite"),
+    ];
+    for (normal, wanted) in refused {
+        let out = formfactor(normal, SQUARE, &["--method", "hemicube"]);
+        assert_eq!(out.status.code(), Some(2), "{normal}");
+        let err = text(&out.stderr);
+        assert!(
+            err.starts_with("--normal") && err.contains(wanted),
+            "{normal}: {err}"
+        );
+    }
+    // Only the direction counts: a tiny (not subnormal) or a huge normal is the unit one.
+    let unit = formfactor("0,0,1", SQUARE, &["--method", "hemisphere"]);
+    assert!(unit.status.success());
+    for normal in ["0,0,1e-300", "0,0,1e308", "0,0,3e-308"] {
+        let out = formfactor(normal, SQUARE, &["--method", "hemisphere"]);
+        assert!(out.status.success(), "{normal}: {}", text(&out.stderr));
+        assert_eq!(text(&out.stdout), text(&unit.stdout), "{normal}");
+    }
+}
+
+#[test]
+fn formfactor_resolution_is_bounded_by_the_option_and_the_machine() {
+    for bad in ["0", "4097", "4294967295"] {
+        let out = formfactor(
+            "0,0,1",
+            SQUARE,
+            &["--method", "hemisphere", "--resolution", bad],
+        );
+        assert_eq!(out.status.code(), Some(2), "{bad}");
+        let err = text(&out.stderr);
+        assert!(
+            err.contains("--resolution") && err.contains("1..=4096"),
+            "{bad}: {err}"
+        );
+    }
+    // The seed machine's 4 Renderers hold a disk of 2 x 2 tiles of 128, and a face of 128.
+    let cases = [
+        ("hemisphere", "257", "takes 1 to 256 pixels across"),
+        ("hemicube", "130", "from 2 to 128"),
+        ("hemicube", "127", "even"),
+    ];
+    for (method, n, wanted) in cases {
+        let out = formfactor("0,0,1", SQUARE, &["--method", method, "--resolution", n]);
+        assert_eq!(out.status.code(), Some(2), "{method} {n}");
+        let err = text(&out.stderr);
+        assert!(
+            err.starts_with(&format!("--resolution {n}: the {method}")) && err.contains(wanted),
+            "{err}"
+        );
+    }
+    // The paper's machine, 16 Renderers, holds 4 x 4 tiles.
+    let out = formfactor(
+        "0,0,1",
+        SQUARE,
+        &[
+            "--method",
+            "hemisphere",
+            "--resolution",
+            "600",
+            "--config",
+            "machine-configs/pxpl5-1989.ron",
+        ],
+    );
+    let err = text(&out.stderr);
+    assert!(
+        err.contains("takes 1 to 512") && err.contains("16 Renderers"),
+        "{err}"
+    );
+}
+
+#[test]
+fn formfactor_is_the_same_at_any_power_of_two_scale() {
+    // Scaled by 2^600 the squares of the coordinates overflow f64, and by 2^-600 they
+    // underflow: the check and both computations still give the unscaled run's every digit.
+    let base = formfactor(
+        "0,0,1",
+        SQUARE,
+        &["--method", "hemisphere", "--resolution", "64"],
+    );
+    assert!(base.status.success(), "{}", text(&base.stderr));
+    for s in [2f64.powi(600), 2f64.powi(-600)] {
+        let polygon: Vec<String> = square_points(s)
+            .iter()
+            .map(|v| format!("{:e},{:e},{:e}", v.x, v.y, v.z))
+            .collect();
+        let out = formfactor(
+            "0,0,1",
+            &polygon.join(";"),
+            &["--method", "hemisphere", "--resolution", "64"],
+        );
+        assert!(out.status.success(), "{s:e}: {}", text(&out.stderr));
+        assert_eq!(text(&out.stdout), text(&base.stdout), "{s:e}");
+    }
+}
+
 /// `pxpl5 run` on the small scene with `flags`, writing to `out`, with `RUST_LOG` set to
 /// `rust_log` (or unset).
 fn run_small_logged(out: &std::path::Path, flags: &[&str], rust_log: Option<&str>) -> Output {
