@@ -13,7 +13,7 @@ use clap::Args;
 use pxpl5_geom::DVec3;
 use pxpl5_geom::convex::Corner;
 use pxpl5_geom::polygon::{self, Problem};
-use pxpl5_machine::RunOptions;
+use pxpl5_machine::{RunOptions, RunStats};
 use pxpl5_radiosity::comparison::{Comparison, SEED_RATIO};
 use pxpl5_radiosity::experiment::{self, MethodRun, Settings};
 use pxpl5_radiosity::mesh::{Patch, mesh};
@@ -320,7 +320,17 @@ fn comparison_json(c: &Comparison) -> serde_json::Value {
 const MAX_RESOLUTION: i64 = 4096;
 
 /// Options of `pxpl5 formfactor`.
+///
+/// Numbers are printed as the shortest decimal that reads back as the same f64 ([`number`]).
+/// The absolute error is (method - exact), the relative error (method - exact) / exact, undefined
+/// when the exact value is 0.
 #[derive(Args, Clone, Debug)]
+#[command(
+    after_help = "Numbers are printed as the shortest decimal that reads back as the same \
+    f64: positional from 1e-4 to 1e6 (0.5541264239795721), scientific outside (-9.4e-6). The \
+    absolute error is (method - exact); the relative error is (method - exact) / exact, \
+    undefined when the exact value is 0. Exit code 2 names the option (and the vertex) at fault."
+)]
 pub struct FormFactorArgs {
     /// The receiving point, X,Y,Z.
     #[arg(long, allow_hyphen_values = true)]
@@ -346,6 +356,24 @@ pub struct FormFactorArgs {
     /// Machine config (RON); default: the embedded seed machine.
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Print one JSON object instead of text: method, form_factor, exact, absolute_error,
+    /// relative_error (both null for the exact method; relative_error null when the exact value
+    /// is 0), simulated (the machine's figures: config, time, cycles, ring words, full stats;
+    /// null for the exact method) and options (as given, with the unit normal used).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `x` as the shortest decimal that reads back as the same f64 (Rust's `{}` and `{:e}` both
+/// give those digits): in positional notation for 0 and for 1e-4 <= |x| < 1e6, where it is at
+/// most a few zeros long (0.5541264, 0.00012), and in scientific notation otherwise (1.25e-7,
+/// 3.5e6), where positional notation would make the reader count zeros (1e-300 has 300).
+pub fn number(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-4..1e6).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
 }
 
 fn parse_v3(what: &str, s: &str) -> Result<DVec3, UserError> {
@@ -430,12 +458,12 @@ fn polygon_problems(texts: &[&str], v: &[DVec3]) -> Vec<String> {
                 distance,
                 limit,
             } => out.push(format!(
-                "{}: is {:e} from the polygon's best-fit plane, more than {:e} x its size ({:e}): \
+                "{}: is {} from the polygon's best-fit plane, more than {:e} x its size ({}): \
                  the polygon must be planar",
                 at(vertex),
-                distance * s,
+                number(distance * s),
                 polygon::PLANARITY_TOLERANCE,
-                limit * s
+                number(limit * s)
             )),
             Problem::Corner(c) => out.push(corner(c)),
             Problem::Crossed { turns } => out.push(format!(
@@ -445,6 +473,100 @@ fn polygon_problems(texts: &[&str], v: &[DVec3]) -> Vec<String> {
         }
     }
     out
+}
+
+/// What `pxpl5 formfactor` found: the exact value and, for a method on the machine, its value
+/// and run.
+struct FormFactorReport<'a> {
+    exact: f64,
+    machine: Option<Measured<'a>>,
+}
+
+/// A form factor measured on the machine.
+struct Measured<'a> {
+    method: Method,
+    value: f64,
+    stats: &'a RunStats,
+    config: &'a str,
+}
+
+impl Measured<'_> {
+    /// (value - exact, that over exact), the ratio `None` when exact is 0.
+    fn errors(&self, exact: f64) -> (f64, Option<f64>) {
+        let absolute = self.value - exact;
+        (absolute, (exact != 0.0).then(|| absolute / exact))
+    }
+
+    fn renderer_busy(&self) -> u64 {
+        self.stats.renderers.iter().map(|r| r.busy.0).sum()
+    }
+}
+
+impl FormFactorReport<'_> {
+    fn text(&self) -> String {
+        let Some(m) = &self.machine else {
+            return format!("exact form factor: {}\n", number(self.exact));
+        };
+        let name = m.method.name();
+        let (absolute, relative) = m.errors(self.exact);
+        let relative = relative.map_or("undefined (exact value 0)".to_string(), |r| {
+            format!("{} (absolute error / exact)", number(r))
+        });
+        format!(
+            "{name} form factor: {}\nexact form factor: {}\nabsolute error: {} ({name} - exact)\n\
+             relative error: {relative}\n\
+             simulated: {} us on {} ({}); Renderer busy {} cycles (all boards); GP 0 busy {} \
+             cycles; ring {} payload words\n",
+            number(m.value),
+            number(self.exact),
+            number(absolute),
+            number(m.stats.end.0 as f64 / 1e6),
+            m.config,
+            m.stats.config_hash,
+            m.renderer_busy(),
+            m.stats.gps[0].busy.0,
+            m.stats.ring.total.payload_words
+        )
+    }
+
+    fn json(&self, args: &FormFactorArgs, given: &Given) -> serde_json::Value {
+        let v3 = |v: DVec3| serde_json::json!(v.to_array());
+        let errors = self.machine.as_ref().map(|m| m.errors(self.exact));
+        let simulated = self.machine.as_ref().map(|m| {
+            serde_json::json!({
+                "config": m.config,
+                "config_hash": m.stats.config_hash,
+                "time_ps": m.stats.end.0,
+                "time_s": m.stats.end.as_secs_f64(),
+                "renderer_busy_cycles": m.renderer_busy(),
+                "gp0_busy_cycles": m.stats.gps[0].busy.0,
+                "ring_payload_words": m.stats.ring.total.payload_words,
+                "stats": m.stats.to_json(),
+            })
+        });
+        serde_json::json!({
+            "method": method_name(args.method),
+            "form_factor": self.machine.as_ref().map_or(self.exact, |m| m.value),
+            "exact": self.exact,
+            "absolute_error": errors.map(|e| e.0),
+            "relative_error": errors.and_then(|e| e.1),
+            "simulated": simulated,
+            "options": {
+                "point": v3(given.point),
+                "normal": v3(given.normal),
+                "unit_normal": v3(given.unit_normal),
+                "polygon": given.polygon.iter().map(|&v| v3(v)).collect::<Vec<_>>(),
+                "method": method_name(args.method),
+                "resolution": args.resolution,
+                "config": args.config.as_ref().map(|p| p.display().to_string()),
+            },
+        })
+    }
+}
+
+/// `--method`'s name as the user types it.
+fn method_name(m: FormFactorMethod) -> &'static str {
+    m.on_machine().map_or("exact", Method::name)
 }
 
 /// The inputs of `pxpl5 formfactor`, parsed and checked.
@@ -491,57 +613,99 @@ fn given(args: &FormFactorArgs) -> Result<Given, UserError> {
 pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
     let given = given(args)?;
     let exact = pxpl5_radiosity::exact::point_to_polygon(given.point, given.normal, &given.polygon);
-    let Some(method) = args.method.on_machine() else {
-        println!("exact form factor: {exact:.9}");
-        return Ok(());
-    };
-    let cfg = config_cmd::load(args.config.as_deref())?;
-    check_resolution(method, args.resolution, cfg.renderer.count, &cfg.renderer)
-        .map_err(|e| UserError(format!("--resolution {}: {e}", args.resolution)))?;
-    let options = FfOptions {
-        method,
-        resolution: args.resolution,
-        ..FfOptions::default()
-    };
-    let (measured, _) = timed(
-        "formfactor",
-        RunOptions::default().fidelity,
-        || {
-            experiment::form_factor(
-                &cfg,
-                given.point,
-                given.unit_normal,
-                given.polygon.clone(),
-                options,
-            )
-        },
-        |r| r.stats.end,
-    )?;
-    let (f, stats) = (measured.form_factor, &measured.stats);
-    let renderer: u64 = stats.renderers.iter().map(|r| r.busy.0).sum();
-    println!(
-        "{} form factor: {f:.9} (exact {exact:.9}, error {:+.3}%)",
-        method.name(),
-        if exact > 0.0 {
-            (f - exact) / exact * 100.0
-        } else {
-            0.0
+    let measured = match args.method.on_machine() {
+        None => None,
+        Some(method) => {
+            let cfg = config_cmd::load(args.config.as_deref())?;
+            check_resolution(method, args.resolution, cfg.renderer.count, &cfg.renderer)
+                .map_err(|e| UserError(format!("--resolution {}: {e}", args.resolution)))?;
+            let options = FfOptions {
+                method,
+                resolution: args.resolution,
+                ..FfOptions::default()
+            };
+            let (measured, _) = timed(
+                "formfactor",
+                RunOptions::default().fidelity,
+                || {
+                    experiment::form_factor(
+                        &cfg,
+                        given.point,
+                        given.unit_normal,
+                        given.polygon.clone(),
+                        options,
+                    )
+                },
+                |r| r.stats.end,
+            )?;
+            Some((measured, method, cfg))
         }
-    );
-    println!(
-        "simulated: {:.3} us on {}; Renderer busy {} cycles (all boards); GP 0 busy {} cycles; ring {} payload words",
-        stats.end.as_secs_f64() * 1e6,
-        cfg.name,
-        renderer,
-        stats.gps[0].busy.0,
-        stats.ring.total.payload_words
-    );
+    };
+    let report = FormFactorReport {
+        exact,
+        machine: measured.as_ref().map(|(m, method, cfg)| Measured {
+            method: *method,
+            value: m.form_factor,
+            stats: &m.stats,
+            config: &cfg.name,
+        }),
+    };
+    if args.json {
+        let json =
+            serde_json::to_string_pretty(&report.json(args, &given)).map_err(UserError::from)?;
+        println!("{json}");
+    } else {
+        print!("{}", report.text());
+    }
     Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Numbers read back as the same f64, in positional notation from 1e-4 to 1e6.
+    #[test]
+    fn numbers_are_shortest_round_trips() {
+        assert_eq!(number(0.0), "0");
+        assert_eq!(number(-0.0), "-0");
+        assert_eq!(number(0.5541264239795721), "0.5541264239795721");
+        assert_eq!(number(0.5), "0.5");
+        assert_eq!(number(1e-4), "0.0001");
+        assert_eq!(number(9.99e-5), "9.99e-5");
+        assert_eq!(number(-1.25e-7), "-1.25e-7");
+        assert_eq!(number(123456.5), "123456.5");
+        assert_eq!(number(1e6), "1e6");
+        assert_eq!(number(1e-300), "1e-300");
+        assert_eq!(number(f64::NAN), "NaN");
+        let mut rng = pxpl5_geom::rng::Lcg::new(8);
+        let mut values = vec![
+            f64::MIN_POSITIVE,
+            5e-324,
+            f64::MAX,
+            0.1 + 0.2,
+            1.0 / 3.0,
+            -2.0f64.sqrt() * 1e-9,
+        ];
+        for _ in 0..1000 {
+            values.push(rng.range(-1.0, 1.0) * 10f64.powf(rng.range(-320.0, 308.0)));
+        }
+        for x in values {
+            let shown = number(x);
+            assert_eq!(shown.parse::<f64>().unwrap(), x, "{shown}");
+            // Not one digit more than Rust's shortest form.
+            let digits = |s: &str| {
+                let mantissa = s.split('e').next().unwrap_or("");
+                mantissa
+                    .chars()
+                    .filter(char::is_ascii_digit)
+                    .collect::<String>()
+                    .trim_matches('0')
+                    .len()
+            };
+            assert_eq!(digits(&shown), digits(&format!("{x:e}")), "{shown}");
+        }
+    }
 
     /// `pxpl5 radiosity` with no flags runs the library's default experiment.
     #[test]

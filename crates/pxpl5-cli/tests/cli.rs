@@ -391,6 +391,22 @@ fn formfactor(normal: &str, polygon: &str, more: &[&str]) -> Output {
     pxpl5(&args)
 }
 
+/// The value after `label: ` on its line of `out`'s stdout, up to the next space.
+fn value_of(out: &Output, label: &str) -> String {
+    let stdout = text(&out.stdout);
+    let line = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix(&format!("{label}: ")))
+        .unwrap_or_else(|| panic!("no {label:?} in {stdout}"));
+    line.split(' ').next().unwrap_or("").to_string()
+}
+
+fn f64_of(out: &Output, label: &str) -> f64 {
+    let v = value_of(out, label);
+    v.parse()
+        .unwrap_or_else(|_| panic!("{label}: {v:?} is not a number"))
+}
+
 /// The square's corners as vectors, scaled by `s`.
 fn square_points(s: f64) -> Vec<pxpl5_geom::DVec3> {
     SQUARE
@@ -403,6 +419,116 @@ fn square_points(s: f64) -> Vec<pxpl5_geom::DVec3> {
             pxpl5_geom::DVec3::new(c[0], c[1], c[2])
         })
         .collect()
+}
+
+#[test]
+fn formfactor_prints_round_trip_values_and_both_errors() {
+    use pxpl5_radiosity::exact::point_to_polygon;
+    let exact = point_to_polygon(
+        pxpl5_geom::DVec3::ZERO,
+        pxpl5_geom::DVec3::Z,
+        &square_points(1.0),
+    );
+    let out = formfactor("0,0,1", SQUARE, &["--method", "hemicube"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    // Every printed number reads back as the very f64 computed.
+    let f = f64_of(&out, "hemicube form factor");
+    assert_eq!(f64_of(&out, "exact form factor"), exact);
+    let absolute = f64_of(&out, "absolute error");
+    assert_eq!(absolute, f - exact);
+    assert_eq!(f64_of(&out, "relative error"), absolute / exact);
+    // The hemicube's error here is about -1e-5: scientific notation, all its digits.
+    assert!(
+        value_of(&out, "absolute error").contains("e-6"),
+        "{}",
+        text(&out.stdout)
+    );
+    assert!(!text(&out.stdout).contains('%'));
+    assert!(text(&out.stdout).contains("Renderer busy"));
+    // --help states the rule.
+    let help = text(&pxpl5(&["formfactor", "--help"]).stdout);
+    assert!(
+        help.contains("shortest decimal that reads back as the same f64"),
+        "{help}"
+    );
+
+    // A tiny form factor keeps its digits (nine fixed decimals printed 0.000000000).
+    let far = "1000,1000,1;1001,1000,1;1001,1001,1";
+    let out = formfactor("0,0,1", far, &[]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let far_points = [
+        pxpl5_geom::DVec3::new(1000.0, 1000.0, 1.0),
+        pxpl5_geom::DVec3::new(1001.0, 1000.0, 1.0),
+        pxpl5_geom::DVec3::new(1001.0, 1001.0, 1.0),
+    ];
+    let exact = point_to_polygon(pxpl5_geom::DVec3::ZERO, pxpl5_geom::DVec3::Z, &far_points);
+    assert!(exact > 0.0 && exact < 1e-10, "{exact}");
+    assert_eq!(f64_of(&out, "exact form factor"), exact);
+    assert!(value_of(&out, "exact form factor").contains("e-14"));
+}
+
+#[test]
+fn formfactor_relative_error_is_undefined_when_the_exact_value_is_0() {
+    // The square lies wholly behind the point: F = 0 exactly, on the machine too.
+    let out = formfactor("0,0,-1", SQUARE, &["--method", "hemisphere"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    assert_eq!(f64_of(&out, "exact form factor"), 0.0);
+    assert_eq!(f64_of(&out, "hemisphere form factor"), 0.0);
+    assert!(
+        stdout.contains("relative error: undefined (exact value 0)\n"),
+        "{stdout}"
+    );
+    assert!(!stdout.contains('%'), "{stdout}");
+}
+
+#[test]
+fn formfactor_json_has_the_values_the_run_and_the_options() {
+    let out = formfactor("0,0,2", SQUARE, &["--method", "hemicube", "--json"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON on stdout");
+    let text_run = formfactor("0,0,2", SQUARE, &["--method", "hemicube"]);
+    // The same values as the text, to the bit.
+    let f = json["form_factor"].as_f64().unwrap();
+    let exact = json["exact"].as_f64().unwrap();
+    assert_eq!(f, f64_of(&text_run, "hemicube form factor"));
+    assert_eq!(exact, f64_of(&text_run, "exact form factor"));
+    assert_eq!(json["absolute_error"].as_f64(), Some(f - exact));
+    assert_eq!(json["relative_error"].as_f64(), Some((f - exact) / exact));
+    assert_eq!(json["method"], "hemicube");
+    // The machine's figures.
+    let sim = &json["simulated"];
+    assert_eq!(sim["config"], "seed-tr89-002");
+    let ps = sim["time_ps"].as_u64().unwrap();
+    assert!(ps > 0);
+    assert_eq!(sim["time_s"].as_f64(), Some(ps as f64 * 1e-12));
+    assert!(sim["renderer_busy_cycles"].as_u64().unwrap() > 0);
+    assert!(sim["gp0_busy_cycles"].as_u64().unwrap() > 0);
+    assert!(sim["ring_payload_words"].as_u64().unwrap() > 0);
+    assert_eq!(sim["stats"]["config_hash"], sim["config_hash"]);
+    // The options, as given and as used.
+    let opts = &json["options"];
+    assert_eq!(opts["normal"], serde_json::json!([0.0, 0.0, 2.0]));
+    assert_eq!(opts["unit_normal"], serde_json::json!([0.0, 0.0, 1.0]));
+    assert_eq!(opts["point"], serde_json::json!([0.0, 0.0, 0.0]));
+    assert_eq!(opts["polygon"].as_array().unwrap().len(), 4);
+    assert_eq!(opts["polygon"][0], serde_json::json!([-1.0, -1.0, 1.0]));
+    assert_eq!(opts["method"], "hemicube");
+    assert_eq!(opts["resolution"], 128);
+    assert_eq!(opts["config"], serde_json::Value::Null);
+
+    // The exact method: no machine, no errors.
+    let out = formfactor("0,0,1", SQUARE, &["--json"]);
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON on stdout");
+    assert_eq!(json["method"], "exact");
+    assert_eq!(json["form_factor"], json["exact"]);
+    assert!(json["simulated"].is_null() && json["absolute_error"].is_null());
+    // Exact value 0: the relative error is null, not 0.
+    let out = formfactor("0,0,-1", SQUARE, &["--method", "hemisphere", "--json"]);
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON on stdout");
+    assert_eq!(json["exact"].as_f64(), Some(0.0));
+    assert_eq!(json["absolute_error"].as_f64(), Some(0.0));
+    assert!(json["relative_error"].is_null(), "{json}");
 }
 
 #[test]
