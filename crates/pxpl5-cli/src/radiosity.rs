@@ -11,13 +11,15 @@ use std::path::{Path, PathBuf};
 
 use clap::Args;
 use pxpl5_geom::DVec3;
-use pxpl5_machine::RunOptions;
+use pxpl5_geom::convex::Corner;
+use pxpl5_geom::polygon::{self, Problem};
+use pxpl5_machine::{RunOptions, RunStats};
 use pxpl5_radiosity::comparison::{Comparison, SEED_RATIO};
 use pxpl5_radiosity::experiment::{self, MethodRun, Settings};
 use pxpl5_radiosity::mesh::{Patch, mesh};
 use pxpl5_radiosity::picture;
 use pxpl5_radiosity::scene::RadiosityScene;
-use pxpl5_radiosity::shot::{FfOptions, Method};
+use pxpl5_radiosity::shot::{FfOptions, Method, check_resolution};
 
 use crate::UserError;
 use crate::choices::{Delta, DepthArg, EdgeRuleArg, FidelityArg, FormFactorMethod, Methods};
@@ -348,27 +350,66 @@ fn comparison_json(c: &Comparison) -> serde_json::Value {
     })
 }
 
+/// The largest `formfactor --resolution`: 2^12, the pixel addresses of the default QEE
+/// (`renderer.qee.coordinate_bits`). It also bounds the host's table of a view's delta form
+/// factors, N x N f64 values, at 128 MiB.
+const MAX_RESOLUTION: i64 = 4096;
+
 /// Options of `pxpl5 formfactor`.
+///
+/// Numbers are printed as the shortest decimal that reads back as the same f64 ([`number`]).
+/// The absolute error is (method - exact), the relative error (method - exact) / exact, undefined
+/// when the exact value is 0.
 #[derive(Args, Clone, Debug)]
+#[command(
+    after_help = "Numbers are printed as the shortest decimal that reads back as the same \
+    f64: positional from 1e-4 to 1e6 (0.5541264239795721), scientific outside (-9.4e-6). The \
+    absolute error is (method - exact); the relative error is (method - exact) / exact, \
+    undefined when the exact value is 0. Exit code 2 names the option (and the vertex) at fault."
+)]
 pub struct FormFactorArgs {
     /// The receiving point, X,Y,Z.
     #[arg(long, allow_hyphen_values = true)]
     pub point: String,
-    /// Its normal, X,Y,Z (need not be unit length).
+    /// Its normal, X,Y,Z: only its direction is used, so any length from f64::MIN_POSITIVE
+    /// (about 2.2e-308) up will do; zero and shorter (subnormal) vectors are refused.
     #[arg(long, allow_hyphen_values = true)]
     pub normal: String,
-    /// The polygon's vertices, "X,Y,Z;X,Y,Z;..." (planar, convex, 3 or more).
+    /// The polygon's vertices, "X,Y,Z;X,Y,Z;..." (3 or more, planar and convex, in either
+    /// order; messages number them from 0). Checked as the radiosity scene files are: within
+    /// 1e-6 x its size of a plane, no repeated, collinear or reflex corner, edges not crossing.
     #[arg(long, allow_hyphen_values = true)]
     pub polygon: String,
     /// exact (the contour formula), hemisphere or hemicube (on the simulated machine).
     #[arg(long, value_enum, default_value_t = FormFactorMethod::Exact)]
     pub method: FormFactorMethod,
-    /// Pixels across the disk or the hemicube's top face.
-    #[arg(long, default_value_t = 128)]
+    /// Pixels across the disk or the hemicube's top face, 1 to 4096; the machine limits it
+    /// further (a disk of N pixels needs ceil(N / 128)^2 Renderers of 128 x 128; a hemicube
+    /// face must fit one Renderer, and N must be even).
+    #[arg(long, default_value_t = 128,
+          value_parser = clap::value_parser!(u32).range(1..=MAX_RESOLUTION))]
     pub resolution: u32,
     /// Machine config (RON); default: the embedded seed machine.
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Print one JSON object instead of text: method, form_factor, exact, absolute_error,
+    /// relative_error (both null for the exact method; relative_error null when the exact value
+    /// is 0), simulated (the machine's figures: config, time, cycles, ring words, full stats;
+    /// null for the exact method) and options (as given, with the unit normal used).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `x` as the shortest decimal that reads back as the same f64 (Rust's `{}` and `{:e}` both
+/// give those digits): in positional notation for 0 and for 1e-4 <= |x| < 1e6, where it is at
+/// most a few zeros long (0.5541264, 0.00012), and in scientific notation otherwise (1.25e-7,
+/// 3.5e6), where positional notation would make the reader count zeros (1e-300 has 300).
+pub fn number(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-4..1e6).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
 }
 
 fn parse_v3(what: &str, s: &str) -> Result<DVec3, UserError> {
@@ -387,16 +428,203 @@ fn parse_v3(what: &str, s: &str) -> Result<DVec3, UserError> {
     Ok(DVec3::from_array(v))
 }
 
-pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
+/// The unit normal of `--normal` (`text` as given), or why it has no usable direction.
+fn unit_normal(text: &str, normal: DVec3) -> Result<DVec3, UserError> {
+    if normal == DVec3::ZERO {
+        return Err(UserError(
+            "--normal: must not be zero (only its direction is used, and zero has none)".into(),
+        ));
+    }
+    pxpl5_radiosity::exact::unit_normal(normal).ok_or_else(|| {
+        UserError(format!(
+            "--normal: `{text}` is too short: its length must be at least f64::MIN_POSITIVE \
+             ({:e}); a shorter vector is made of subnormal numbers, whose direction is not known \
+             to f64 precision (only the direction is used: scale it up)",
+            f64::MIN_POSITIVE
+        ))
+    })
+}
+
+/// Every problem of `--polygon` as a planar convex polygon, a line each naming the vertex (as
+/// the user wrote it, `texts[k]`) where there is one; empty when it is fine.
+///
+/// The check runs on the polygon divided by a power of two ([`polygon::power_of_two_scale`]),
+/// which gives the same verdict without overflowing for huge or tiny coordinates; distances are
+/// reported in the user's units.
+fn polygon_problems(texts: &[&str], v: &[DVec3]) -> Vec<String> {
+    let s = polygon::power_of_two_scale(v);
+    let scaled: Vec<DVec3> = v.iter().map(|&p| p / s).collect();
+    let n = v.len();
+    let at = |k: usize| format!("--polygon vertex {k} `{}`", texts[k].trim());
+    let corner = |c: Corner| match c {
+        Corner::Repeat(k) => format!(
+            "{}: repeats vertex {k} (consecutive vertices must be more than {:e} x the \
+             polygon's size apart)",
+            at((k + 1) % n),
+            polygon::ZERO_AREA
+        ),
+        Corner::Straight(k) => format!(
+            "{}: is collinear with vertices {} and {}: remove it (a straight corner has no \
+             defined turn)",
+            at(k),
+            (k + n - 1) % n,
+            (k + 1) % n
+        ),
+        Corner::Reflex(k) => format!(
+            "{}: makes the polygon non-convex (its corner turns against the others, or folds \
+             back)",
+            at(k)
+        ),
+    };
+    let mut out = Vec::new();
+    for problem in polygon::problems(&scaled) {
+        match problem {
+            // Excluded by the parser: 3 or more finite vertices.
+            Problem::NotAPolygon => out.push("--polygon: needs 3 or more finite vertices".into()),
+            Problem::ZeroArea => {
+                out.push(
+                    "--polygon: has zero area (coincident or collinear vertices, or edges that \
+                     cross so that its parts cancel, as a bow-tie's do)"
+                        .into(),
+                );
+                out.extend(polygon::zero_area_corners(&scaled).into_iter().map(corner));
+            }
+            Problem::NotPlanar {
+                vertex,
+                distance,
+                limit,
+            } => out.push(format!(
+                "{}: is {} from the polygon's best-fit plane, more than {:e} x its size ({}): \
+                 the polygon must be planar",
+                at(vertex),
+                number(distance * s),
+                polygon::PLANARITY_TOLERANCE,
+                number(limit * s)
+            )),
+            Problem::Corner(c) => out.push(corner(c)),
+            Problem::Crossed { turns } => out.push(format!(
+                "--polygon: is not convex: its edges cross (the outline winds around {turns:.1} \
+                 times, not once)"
+            )),
+        }
+    }
+    out
+}
+
+/// What `pxpl5 formfactor` found: the exact value and, for a method on the machine, its value
+/// and run.
+struct FormFactorReport<'a> {
+    exact: f64,
+    machine: Option<Measured<'a>>,
+}
+
+/// A form factor measured on the machine.
+struct Measured<'a> {
+    method: Method,
+    value: f64,
+    stats: &'a RunStats,
+    config: &'a str,
+}
+
+impl Measured<'_> {
+    /// (value - exact, that over exact), the ratio `None` when exact is 0.
+    fn errors(&self, exact: f64) -> (f64, Option<f64>) {
+        let absolute = self.value - exact;
+        (absolute, (exact != 0.0).then(|| absolute / exact))
+    }
+
+    fn renderer_busy(&self) -> u64 {
+        self.stats.renderers.iter().map(|r| r.busy.0).sum()
+    }
+}
+
+impl FormFactorReport<'_> {
+    fn text(&self) -> String {
+        let Some(m) = &self.machine else {
+            return format!("exact form factor: {}\n", number(self.exact));
+        };
+        let name = m.method.name();
+        let (absolute, relative) = m.errors(self.exact);
+        let relative = relative.map_or("undefined (exact value 0)".to_string(), |r| {
+            format!("{} (absolute error / exact)", number(r))
+        });
+        format!(
+            "{name} form factor: {}\nexact form factor: {}\nabsolute error: {} ({name} - exact)\n\
+             relative error: {relative}\n\
+             simulated: {} us on {} ({}); Renderer busy {} cycles (all boards); GP 0 busy {} \
+             cycles; ring {} payload words\n",
+            number(m.value),
+            number(self.exact),
+            number(absolute),
+            number(m.stats.end.0 as f64 / 1e6),
+            m.config,
+            m.stats.config_hash,
+            m.renderer_busy(),
+            m.stats.gps[0].busy.0,
+            m.stats.ring.total.payload_words
+        )
+    }
+
+    fn json(&self, args: &FormFactorArgs, given: &Given) -> serde_json::Value {
+        let v3 = |v: DVec3| serde_json::json!(v.to_array());
+        let errors = self.machine.as_ref().map(|m| m.errors(self.exact));
+        let simulated = self.machine.as_ref().map(|m| {
+            serde_json::json!({
+                "config": m.config,
+                "config_hash": m.stats.config_hash,
+                "time_ps": m.stats.end.0,
+                "time_s": m.stats.end.as_secs_f64(),
+                "renderer_busy_cycles": m.renderer_busy(),
+                "gp0_busy_cycles": m.stats.gps[0].busy.0,
+                "ring_payload_words": m.stats.ring.total.payload_words,
+                "stats": m.stats.to_json(),
+            })
+        });
+        serde_json::json!({
+            "method": method_name(args.method),
+            "form_factor": self.machine.as_ref().map_or(self.exact, |m| m.value),
+            "exact": self.exact,
+            "absolute_error": errors.map(|e| e.0),
+            "relative_error": errors.and_then(|e| e.1),
+            "simulated": simulated,
+            "options": {
+                "point": v3(given.point),
+                "normal": v3(given.normal),
+                "unit_normal": v3(given.unit_normal),
+                "polygon": given.polygon.iter().map(|&v| v3(v)).collect::<Vec<_>>(),
+                "method": method_name(args.method),
+                "resolution": args.resolution,
+                "config": args.config.as_ref().map(|p| p.display().to_string()),
+            },
+        })
+    }
+}
+
+/// `--method`'s name as the user types it.
+fn method_name(m: FormFactorMethod) -> &'static str {
+    m.on_machine().map_or("exact", Method::name)
+}
+
+/// The inputs of `pxpl5 formfactor`, parsed and checked.
+struct Given {
+    point: DVec3,
+    normal: DVec3,
+    unit_normal: DVec3,
+    polygon: Vec<DVec3>,
+}
+
+/// Parse and check `--point`, `--normal` and `--polygon`.
+fn given(args: &FormFactorArgs) -> Result<Given, UserError> {
     let point = parse_v3("--point", &args.point)?;
     let normal = parse_v3("--normal", &args.normal)?;
-    if normal == DVec3::ZERO {
-        return Err(UserError("--normal: must not be zero".into()));
-    }
-    let polygon: Vec<DVec3> = args
+    let unit_normal = unit_normal(&args.normal, normal)?;
+    let texts: Vec<&str> = args
         .polygon
         .split(';')
         .filter(|s| !s.trim().is_empty())
+        .collect();
+    let polygon: Vec<DVec3> = texts
+        .iter()
         .enumerate()
         .map(|(i, s)| parse_v3(&format!("--polygon vertex {i}"), s))
         .collect::<Result<_, _>>()?;
@@ -406,49 +634,114 @@ pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
             polygon.len()
         )));
     }
-    let nn = normal.normalize();
-    let exact = pxpl5_radiosity::exact::point_to_polygon(point, nn, &polygon);
-    let Some(method) = args.method.on_machine() else {
-        outln!("exact form factor: {exact:.9}")?;
-        return Ok(());
-    };
-    let cfg = config_cmd::load(args.config.as_deref())?;
-    let options = FfOptions {
-        method,
-        resolution: args.resolution,
-        ..FfOptions::default()
-    };
-    let (measured, _) = timed(
-        "formfactor",
-        RunOptions::default().fidelity,
-        || experiment::form_factor(&cfg, point, nn, polygon, options),
-        |r| r.stats.end,
-    )?;
-    let (f, stats) = (measured.form_factor, &measured.stats);
-    let renderer: u64 = stats.renderers.iter().map(|r| r.busy.0).sum();
-    outln!(
-        "{} form factor: {f:.9} (exact {exact:.9}, error {:+.3}%)",
-        method.name(),
-        if exact > 0.0 {
-            (f - exact) / exact * 100.0
-        } else {
-            0.0
+    let problems = polygon_problems(&texts, &polygon);
+    if !problems.is_empty() {
+        return Err(UserError(problems.join("\n")));
+    }
+    Ok(Given {
+        point,
+        normal,
+        unit_normal,
+        polygon,
+    })
+}
+
+pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
+    let given = given(args)?;
+    let exact = pxpl5_radiosity::exact::point_to_polygon(given.point, given.normal, &given.polygon);
+    let measured = match args.method.on_machine() {
+        None => None,
+        Some(method) => {
+            let cfg = config_cmd::load(args.config.as_deref())?;
+            check_resolution(method, args.resolution, cfg.renderer.count, &cfg.renderer)
+                .map_err(|e| UserError(format!("--resolution {}: {e}", args.resolution)))?;
+            let options = FfOptions {
+                method,
+                resolution: args.resolution,
+                ..FfOptions::default()
+            };
+            let (measured, _) = timed(
+                "formfactor",
+                RunOptions::default().fidelity,
+                || {
+                    experiment::form_factor(
+                        &cfg,
+                        given.point,
+                        given.unit_normal,
+                        given.polygon.clone(),
+                        options,
+                    )
+                },
+                |r| r.stats.end,
+            )?;
+            Some((measured, method, cfg))
         }
-    )?;
-    outln!(
-        "simulated: {:.3} us on {}; Renderer busy {} cycles (all boards); GP 0 busy {} cycles; ring {} payload words",
-        stats.end.as_secs_f64() * 1e6,
-        cfg.name,
-        renderer,
-        stats.gps[0].busy.0,
-        stats.ring.total.payload_words
-    )?;
+    };
+    let report = FormFactorReport {
+        exact,
+        machine: measured.as_ref().map(|(m, method, cfg)| Measured {
+            method: *method,
+            value: m.form_factor,
+            stats: &m.stats,
+            config: &cfg.name,
+        }),
+    };
+    if args.json {
+        let json =
+            serde_json::to_string_pretty(&report.json(args, &given)).map_err(UserError::from)?;
+        outln!("{json}")?;
+    } else {
+        out!("{}", report.text())?;
+    }
     Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Numbers read back as the same f64, in positional notation from 1e-4 to 1e6.
+    #[test]
+    fn numbers_are_shortest_round_trips() {
+        assert_eq!(number(0.0), "0");
+        assert_eq!(number(-0.0), "-0");
+        assert_eq!(number(0.5541264239795721), "0.5541264239795721");
+        assert_eq!(number(0.5), "0.5");
+        assert_eq!(number(1e-4), "0.0001");
+        assert_eq!(number(9.99e-5), "9.99e-5");
+        assert_eq!(number(-1.25e-7), "-1.25e-7");
+        assert_eq!(number(123456.5), "123456.5");
+        assert_eq!(number(1e6), "1e6");
+        assert_eq!(number(1e-300), "1e-300");
+        assert_eq!(number(f64::NAN), "NaN");
+        let mut rng = pxpl5_geom::rng::Lcg::new(8);
+        let mut values = vec![
+            f64::MIN_POSITIVE,
+            5e-324,
+            f64::MAX,
+            0.1 + 0.2,
+            1.0 / 3.0,
+            -2.0f64.sqrt() * 1e-9,
+        ];
+        for _ in 0..1000 {
+            values.push(rng.range(-1.0, 1.0) * 10f64.powf(rng.range(-320.0, 308.0)));
+        }
+        for x in values {
+            let shown = number(x);
+            assert_eq!(shown.parse::<f64>().unwrap(), x, "{shown}");
+            // Not one digit more than Rust's shortest form.
+            let digits = |s: &str| {
+                let mantissa = s.split('e').next().unwrap_or("");
+                mantissa
+                    .chars()
+                    .filter(char::is_ascii_digit)
+                    .collect::<String>()
+                    .trim_matches('0')
+                    .len()
+            };
+            assert_eq!(digits(&shown), digits(&format!("{x:e}")), "{shown}");
+        }
+    }
 
     /// `pxpl5 radiosity` with no flags runs the library's default experiment.
     #[test]

@@ -374,6 +374,336 @@ fn formfactor_exact_and_on_the_machine() {
     assert!(text(&out.stderr).contains("--point"));
 }
 
+/// The square of side 2 at height 1 above the origin, as `--polygon` takes it.
+const SQUARE: &str = "-1,-1,1;1,-1,1;1,1,1;-1,1,1";
+
+/// `pxpl5 formfactor` from the origin, normal `normal`, to `polygon`, with `more` flags.
+fn formfactor(normal: &str, polygon: &str, more: &[&str]) -> Output {
+    let mut args = vec![
+        "formfactor",
+        "--point",
+        "0,0,0",
+        "--normal",
+        normal,
+        "--polygon",
+        polygon,
+    ];
+    args.extend(more);
+    pxpl5(&args)
+}
+
+/// The value after `label: ` on its line of `out`'s stdout, up to the next space.
+fn value_of(out: &Output, label: &str) -> String {
+    let stdout = text(&out.stdout);
+    let line = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix(&format!("{label}: ")))
+        .unwrap_or_else(|| panic!("no {label:?} in {stdout}"));
+    line.split(' ').next().unwrap_or("").to_string()
+}
+
+fn f64_of(out: &Output, label: &str) -> f64 {
+    let v = value_of(out, label);
+    v.parse()
+        .unwrap_or_else(|_| panic!("{label}: {v:?} is not a number"))
+}
+
+/// The square's corners as vectors, scaled by `s`.
+fn square_points(s: f64) -> Vec<pxpl5_geom::DVec3> {
+    SQUARE
+        .split(';')
+        .map(|v| {
+            let c: Vec<f64> = v
+                .split(',')
+                .map(|x| x.parse::<f64>().unwrap() * s)
+                .collect();
+            pxpl5_geom::DVec3::new(c[0], c[1], c[2])
+        })
+        .collect()
+}
+
+#[test]
+fn formfactor_prints_round_trip_values_and_both_errors() {
+    use pxpl5_radiosity::exact::point_to_polygon;
+    let exact = point_to_polygon(
+        pxpl5_geom::DVec3::ZERO,
+        pxpl5_geom::DVec3::Z,
+        &square_points(1.0),
+    );
+    let out = formfactor("0,0,1", SQUARE, &["--method", "hemicube"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    // Every printed number reads back as the very f64 computed.
+    let f = f64_of(&out, "hemicube form factor");
+    assert_eq!(f64_of(&out, "exact form factor"), exact);
+    let absolute = f64_of(&out, "absolute error");
+    assert_eq!(absolute, f - exact);
+    assert_eq!(f64_of(&out, "relative error"), absolute / exact);
+    // The hemicube's error here is below 1e-4 in magnitude (about -7e-5 with the default seeded
+    // turn of the view): scientific notation, all its digits.
+    assert!(absolute.abs() < 1e-4, "{absolute}");
+    assert!(
+        value_of(&out, "absolute error").contains("e-"),
+        "{}",
+        text(&out.stdout)
+    );
+    assert!(!text(&out.stdout).contains('%'));
+    assert!(text(&out.stdout).contains("Renderer busy"));
+    // --help states the rule.
+    let help = text(&pxpl5(&["formfactor", "--help"]).stdout);
+    assert!(
+        help.contains("shortest decimal that reads back as the same f64"),
+        "{help}"
+    );
+
+    // A tiny form factor keeps its digits (nine fixed decimals printed 0.000000000).
+    let far = "1000,1000,1;1001,1000,1;1001,1001,1";
+    let out = formfactor("0,0,1", far, &[]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let far_points = [
+        pxpl5_geom::DVec3::new(1000.0, 1000.0, 1.0),
+        pxpl5_geom::DVec3::new(1001.0, 1000.0, 1.0),
+        pxpl5_geom::DVec3::new(1001.0, 1001.0, 1.0),
+    ];
+    let exact = point_to_polygon(pxpl5_geom::DVec3::ZERO, pxpl5_geom::DVec3::Z, &far_points);
+    assert!(exact > 0.0 && exact < 1e-10, "{exact}");
+    assert_eq!(f64_of(&out, "exact form factor"), exact);
+    assert!(value_of(&out, "exact form factor").contains("e-14"));
+}
+
+#[test]
+fn formfactor_relative_error_is_undefined_when_the_exact_value_is_0() {
+    // The square lies wholly behind the point: F = 0 exactly, on the machine too.
+    let out = formfactor("0,0,-1", SQUARE, &["--method", "hemisphere"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let stdout = text(&out.stdout);
+    assert_eq!(f64_of(&out, "exact form factor"), 0.0);
+    assert_eq!(f64_of(&out, "hemisphere form factor"), 0.0);
+    assert!(
+        stdout.contains("relative error: undefined (exact value 0)\n"),
+        "{stdout}"
+    );
+    assert!(!stdout.contains('%'), "{stdout}");
+}
+
+#[test]
+fn formfactor_json_has_the_values_the_run_and_the_options() {
+    let out = formfactor("0,0,2", SQUARE, &["--method", "hemicube", "--json"]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON on stdout");
+    let text_run = formfactor("0,0,2", SQUARE, &["--method", "hemicube"]);
+    // The same values as the text, to the bit.
+    let f = json["form_factor"].as_f64().unwrap();
+    let exact = json["exact"].as_f64().unwrap();
+    assert_eq!(f, f64_of(&text_run, "hemicube form factor"));
+    assert_eq!(exact, f64_of(&text_run, "exact form factor"));
+    assert_eq!(json["absolute_error"].as_f64(), Some(f - exact));
+    assert_eq!(json["relative_error"].as_f64(), Some((f - exact) / exact));
+    assert_eq!(json["method"], "hemicube");
+    // The machine's figures.
+    let sim = &json["simulated"];
+    assert_eq!(sim["config"], "seed-tr89-002");
+    let ps = sim["time_ps"].as_u64().unwrap();
+    assert!(ps > 0);
+    assert_eq!(sim["time_s"].as_f64(), Some(ps as f64 * 1e-12));
+    assert!(sim["renderer_busy_cycles"].as_u64().unwrap() > 0);
+    assert!(sim["gp0_busy_cycles"].as_u64().unwrap() > 0);
+    assert!(sim["ring_payload_words"].as_u64().unwrap() > 0);
+    assert_eq!(sim["stats"]["config_hash"], sim["config_hash"]);
+    // The options, as given and as used.
+    let opts = &json["options"];
+    assert_eq!(opts["normal"], serde_json::json!([0.0, 0.0, 2.0]));
+    assert_eq!(opts["unit_normal"], serde_json::json!([0.0, 0.0, 1.0]));
+    assert_eq!(opts["point"], serde_json::json!([0.0, 0.0, 0.0]));
+    assert_eq!(opts["polygon"].as_array().unwrap().len(), 4);
+    assert_eq!(opts["polygon"][0], serde_json::json!([-1.0, -1.0, 1.0]));
+    assert_eq!(opts["method"], "hemicube");
+    assert_eq!(opts["resolution"], 128);
+    assert_eq!(opts["config"], serde_json::Value::Null);
+
+    // The exact method: no machine, no errors.
+    let out = formfactor("0,0,1", SQUARE, &["--json"]);
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON on stdout");
+    assert_eq!(json["method"], "exact");
+    assert_eq!(json["form_factor"], json["exact"]);
+    assert!(json["simulated"].is_null() && json["absolute_error"].is_null());
+    // Exact value 0: the relative error is null, not 0.
+    let out = formfactor("0,0,-1", SQUARE, &["--method", "hemisphere", "--json"]);
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON on stdout");
+    assert_eq!(json["exact"].as_f64(), Some(0.0));
+    assert_eq!(json["absolute_error"].as_f64(), Some(0.0));
+    assert!(json["relative_error"].is_null(), "{json}");
+}
+
+#[test]
+fn formfactor_refuses_polygons_that_are_not_planar_and_convex() {
+    let cases: [(&str, &str, &[&str]); 8] = [
+        // The bow-tie (it printed 0.1416 against an exact 0).
+        (
+            "bow-tie",
+            "0,0,1;1,1,1;1,0,1;0,1,1",
+            &["zero area", "bow-tie", "vertex 1 `1,1,1`", "non-convex"],
+        ),
+        (
+            "asymmetric bow-tie",
+            "0,0,1;3,1,1;3,0,1;0,2,1",
+            &["vertex 1 `3,1,1`", "non-convex"],
+        ),
+        (
+            "collinear triangle",
+            "0,0,1;1,0,1;2,0,1",
+            &["zero area", "vertex 1 `1,0,1`: is collinear"],
+        ),
+        (
+            "collinear vertex",
+            "0,0,1;1,0,1;2,0,1;0,1,1",
+            &["vertex 1 `1,0,1`: is collinear with vertices 0 and 2"],
+        ),
+        (
+            "repeated vertex",
+            "0,0,1;1,0,1;1,0,1;0,1,1",
+            &["vertex 2 `1,0,1`: repeats vertex 1"],
+        ),
+        (
+            "non-planar",
+            "0,0,1;1,0,1;1,1,1.004;0,1,1",
+            &["best-fit plane", "1e-6 x its size", "must be planar"],
+        ),
+        (
+            "reflex corner",
+            "0,0,1;2,0,1;1,0.5,1;1,2,1",
+            &["vertex 2 `1,0.5,1`: makes the polygon non-convex"],
+        ),
+        (
+            "pentagram",
+            "1,0,1;-0.809,0.588,1;0.309,-0.951,1;0.309,0.951,1;-0.809,-0.588,1",
+            &["edges cross", "2.0 times"],
+        ),
+    ];
+    for (name, polygon, wanted) in cases {
+        for method in ["exact", "hemisphere"] {
+            let out = formfactor("0,0,1", polygon, &["--method", method]);
+            assert_eq!(out.status.code(), Some(2), "{name}: {}", text(&out.stdout));
+            assert_eq!(text(&out.stdout), "", "{name}");
+            let err = text(&out.stderr);
+            assert!(err.starts_with("--polygon"), "{name}: {err}");
+            for w in wanted {
+                assert!(err.contains(w), "{name}: no {w:?} in {err}");
+            }
+        }
+    }
+    // Clockwise is as good as counter-clockwise, and within 1e-6 of planar is planar.
+    for polygon in [
+        "-1,1,1;1,1,1;1,-1,1;-1,-1,1",
+        "-1,-1,1;1,-1,1;1,1,1.000001;-1,1,1",
+    ] {
+        let out = formfactor("0,0,1", polygon, &[]);
+        assert!(out.status.success(), "{polygon}: {}", text(&out.stderr));
+    }
+}
+
+#[test]
+fn formfactor_normals_need_a_direction() {
+    let refused = [
+        ("0,0,0", "must not be zero"),
+        ("0,0,1e-310", "too short"),
+        ("1e-308,1e-308,1e-308", "f64::MIN_POSITIVE"),
+        ("0,0,inf", "finite"),
+        ("0,0,nan", "finite"),
+    ];
+    for (normal, wanted) in refused {
+        let out = formfactor(normal, SQUARE, &["--method", "hemicube"]);
+        assert_eq!(out.status.code(), Some(2), "{normal}");
+        let err = text(&out.stderr);
+        assert!(
+            err.starts_with("--normal") && err.contains(wanted),
+            "{normal}: {err}"
+        );
+    }
+    // Only the direction counts: a tiny (not subnormal) or a huge normal is the unit one.
+    let unit = formfactor("0,0,1", SQUARE, &["--method", "hemisphere"]);
+    assert!(unit.status.success());
+    for normal in ["0,0,1e-300", "0,0,1e308", "0,0,3e-308"] {
+        let out = formfactor(normal, SQUARE, &["--method", "hemisphere"]);
+        assert!(out.status.success(), "{normal}: {}", text(&out.stderr));
+        assert_eq!(text(&out.stdout), text(&unit.stdout), "{normal}");
+    }
+}
+
+#[test]
+fn formfactor_resolution_is_bounded_by_the_option_and_the_machine() {
+    for bad in ["0", "4097", "4294967295"] {
+        let out = formfactor(
+            "0,0,1",
+            SQUARE,
+            &["--method", "hemisphere", "--resolution", bad],
+        );
+        assert_eq!(out.status.code(), Some(2), "{bad}");
+        let err = text(&out.stderr);
+        assert!(
+            err.contains("--resolution") && err.contains("1..=4096"),
+            "{bad}: {err}"
+        );
+    }
+    // The seed machine's 4 Renderers hold a disk of 2 x 2 tiles of 128, and a face of 128.
+    let cases = [
+        ("hemisphere", "257", "takes 1 to 256 pixels across"),
+        ("hemicube", "130", "from 2 to 128"),
+        ("hemicube", "127", "even"),
+    ];
+    for (method, n, wanted) in cases {
+        let out = formfactor("0,0,1", SQUARE, &["--method", method, "--resolution", n]);
+        assert_eq!(out.status.code(), Some(2), "{method} {n}");
+        let err = text(&out.stderr);
+        assert!(
+            err.starts_with(&format!("--resolution {n}: the {method}")) && err.contains(wanted),
+            "{err}"
+        );
+    }
+    // The paper's machine, 16 Renderers, holds 4 x 4 tiles.
+    let out = formfactor(
+        "0,0,1",
+        SQUARE,
+        &[
+            "--method",
+            "hemisphere",
+            "--resolution",
+            "600",
+            "--config",
+            "machine-configs/pxpl5-1989.ron",
+        ],
+    );
+    let err = text(&out.stderr);
+    assert!(
+        err.contains("takes 1 to 512") && err.contains("16 Renderers"),
+        "{err}"
+    );
+}
+
+#[test]
+fn formfactor_is_the_same_at_any_power_of_two_scale() {
+    // Scaled by 2^600 the squares of the coordinates overflow f64, and by 2^-600 they
+    // underflow: the check and both computations still give the unscaled run's every digit.
+    let base = formfactor(
+        "0,0,1",
+        SQUARE,
+        &["--method", "hemisphere", "--resolution", "64"],
+    );
+    assert!(base.status.success(), "{}", text(&base.stderr));
+    for s in [2f64.powi(600), 2f64.powi(-600)] {
+        let polygon: Vec<String> = square_points(s)
+            .iter()
+            .map(|v| format!("{:e},{:e},{:e}", v.x, v.y, v.z))
+            .collect();
+        let out = formfactor(
+            "0,0,1",
+            &polygon.join(";"),
+            &["--method", "hemisphere", "--resolution", "64"],
+        );
+        assert!(out.status.success(), "{s:e}: {}", text(&out.stderr));
+        assert_eq!(text(&out.stdout), text(&base.stdout), "{s:e}");
+    }
+}
+
 /// `pxpl5 run` on the small scene with `flags`, writing to `out`, with `RUST_LOG` set to
 /// `rust_log` (or unset).
 fn run_small_logged(out: &std::path::Path, flags: &[&str], rust_log: Option<&str>) -> Output {

@@ -3,6 +3,8 @@
 //!
 //! - [`plane`]: the best-fit plane of a polygon (Newell's method) and a polygon's size;
 //! - [`convex`]: whether a planar polygon is convex, corner by corner;
+//! - [`polygon`]: what is wrong with a polygon that should be planar and convex, with the
+//!   tolerances the scene files and `pxpl5 formfactor` share;
 //! - [`clip`]: one Sutherland-Hodgman clipper for convex polygons;
 //! - [`grid`]: the pixel grid of a view (pixel index <-> the square [-1, 1]);
 //! - [`rng`]: one seeded generator, so random inputs are the same on every host.
@@ -16,6 +18,7 @@ pub mod clip;
 pub mod convex;
 pub mod grid;
 pub mod plane;
+pub mod polygon;
 pub mod rng;
 
 pub use glam::DVec3;

@@ -88,6 +88,28 @@ pub fn point_to_polygon(p: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
     sum.abs() / TAU
 }
 
+/// The unit vector along a normal `n`, computed without overflow or underflow (`n` is divided by
+/// its largest absolute component first, then by its length, as [`point_to_polygon`] does).
+///
+/// `None` unless every component is finite and the length of `n` is at least
+/// `f64::MIN_POSITIVE` (about 2.2e-308, the smallest normal f64): a zero vector has no direction,
+/// and a shorter one is made of subnormal components, which have lost significant bits, so its
+/// direction is not known to f64 precision. At that bound the largest component still has at
+/// least 52 of f64's 53 significant bits. Any finite vector at least that long is accepted,
+/// however long (`(1e308, 1e308, 0)` gives `(1, 1, 0) / sqrt(2)`).
+pub fn unit_normal(n: DVec3) -> Option<DVec3> {
+    if !n.is_finite() {
+        return None;
+    }
+    let scaled = unit_scaled(n)?;
+    // |scaled| is in [1, sqrt(3)]; |n| = largest x |scaled| may round to infinity, which passes.
+    let length = scaled.length();
+    if largest_component(&[n]) * length < f64::MIN_POSITIVE {
+        return None;
+    }
+    Some(scaled * (1.0 / length))
+}
+
 /// `v` divided by its largest absolute component; `None` for the zero vector.
 fn unit_scaled(v: DVec3) -> Option<DVec3> {
     let largest = largest_component(&[v]);
@@ -161,6 +183,28 @@ mod tests {
         let x = 1.0 / 2f64.sqrt();
         let exact = 2.0 * x * x.atan() / TAU;
         assert!((f - exact).abs() < 1e-15, "{f} {exact}");
+    }
+
+    #[test]
+    fn unit_normals_from_any_scale() {
+        assert_eq!(unit_normal(DVec3::new(0.0, 0.0, 2.0)), Some(DVec3::Z));
+        // Squaring 1e-300 underflows; dividing by the largest component first does not.
+        assert_eq!(unit_normal(DVec3::new(0.0, 0.0, 1e-300)), Some(DVec3::Z));
+        assert_eq!(unit_normal(DVec3::new(0.0, -3e-308, 0.0)), Some(-DVec3::Y));
+        let big = unit_normal(DVec3::new(1e308, 1e308, 0.0)).unwrap();
+        assert!((big - DVec3::new(1.0, 1.0, 0.0) / 2f64.sqrt()).length() < 1e-15);
+        // A subnormal component beside a normal one is fine: the length is what counts.
+        assert_eq!(unit_normal(DVec3::new(1e-310, 0.0, 1.0)).unwrap().z, 1.0);
+        // Zero, subnormal lengths and non-finite components have no direction to use.
+        assert_eq!(unit_normal(DVec3::ZERO), None);
+        assert_eq!(unit_normal(DVec3::new(0.0, 0.0, 1e-310)), None);
+        assert_eq!(unit_normal(DVec3::new(1e-308, 1e-308, 1e-308)), None);
+        assert_eq!(
+            unit_normal(DVec3::new(0.0, 0.0, f64::MIN_POSITIVE)),
+            Some(DVec3::Z)
+        );
+        assert_eq!(unit_normal(DVec3::new(f64::NAN, 0.0, 1.0)), None);
+        assert_eq!(unit_normal(DVec3::new(f64::INFINITY, 0.0, 1.0)), None);
     }
 
     #[test]

@@ -144,6 +144,9 @@ pub struct MachineFormFactor {
 /// The form factor from `point` with unit `normal` to the planar convex `polygon`, computed on
 /// the machine of `cfg` with `options` (the polygon is seen from whichever side faces the
 /// point). The exact value is [`crate::exact::point_to_polygon`].
+///
+/// The machine is given the polygon in the point's frame, [`point_frame`]: F does not change,
+/// and the machine's arithmetic then never sees coordinates whose squares overflow or underflow.
 pub fn form_factor(
     cfg: &MachineConfig,
     point: DVec3,
@@ -153,9 +156,9 @@ pub fn form_factor(
 ) -> Result<MachineFormFactor, RunError> {
     let result = Rc::new(RefCell::new(FormFactorResult::default()));
     let program = FormFactorProgram {
-        point,
+        point: DVec3::ZERO,
         normal,
-        polygons: vec![polygon],
+        polygons: vec![point_frame(point, &polygon)],
         options,
         result: result.clone(),
     };
@@ -165,4 +168,19 @@ pub fn form_factor(
         form_factor,
         stats: run.stats,
     })
+}
+
+/// `polygon` relative to `point`, divided by a power of two that brings its largest coordinate
+/// into [1, 2) ([`pxpl5_geom::polygon::power_of_two_scale`]): a form factor depends only on the
+/// vertices relative to the point, up to scale. The machine's shooter frame subtracts the point
+/// too and divides by the polygon's reach, and division by a power of two is exact, so the run's
+/// numbers are the same as with the polygon as given wherever those did not overflow or
+/// underflow. A difference that overflows is taken of the halved coordinates.
+pub fn point_frame(point: DVec3, polygon: &[DVec3]) -> Vec<DVec3> {
+    let mut r: Vec<DVec3> = polygon.iter().map(|&v| v - point).collect();
+    if !r.iter().all(|v| v.is_finite()) {
+        r = polygon.iter().map(|&v| v * 0.5 - point * 0.5).collect();
+    }
+    let s = pxpl5_geom::polygon::power_of_two_scale(&r);
+    r.iter().map(|&v| v / s).collect()
 }

@@ -30,8 +30,9 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use pxpl5_config::{ConfigError, FileKind, SemanticError};
-use pxpl5_geom::convex::{self, Corner};
-use pxpl5_geom::plane::{best_fit_plane, bounding_diagonal, worst_distance};
+use pxpl5_geom::convex::Corner;
+use pxpl5_geom::plane::best_fit_plane;
+use pxpl5_geom::polygon::{self, Problem};
 use pxpl5_geom::{DVec3, vec3};
 pub use pxpl5_polygons::scene::{Camera, Vec3};
 
@@ -99,12 +100,9 @@ impl Surface {
     }
 }
 
-/// Largest distance of a vertex from the polygon's plane allowed, relative to its size.
-pub const PLANARITY_TOLERANCE: f64 = 1e-6;
-
-/// Below this area, relative to size squared, a polygon counts as having zero area: well above
-/// f64 rounding of a collinear polygon's vector area (about 1e-16), well below any real sliver.
-const ZERO_AREA: f64 = 1e-12;
+/// Largest distance of a vertex from the polygon's plane allowed, relative to its size: the
+/// geometry crate's, shared with `pxpl5 formfactor`.
+pub use pxpl5_geom::polygon::PLANARITY_TOLERANCE;
 
 /// Read, parse and check a radiosity scene. The file's path (as given) names the source in errors.
 pub fn load_radiosity_scene(path: &Path) -> Result<RadiosityScene, ConfigError> {
@@ -202,67 +200,56 @@ fn check_surface(at: &str, s: &Surface, errors: &mut Vec<SemanticError>) {
         return;
     }
     let v = s.points();
-    let size = bounding_diagonal(&v);
-    let plane = best_fit_plane(&v).filter(|p| size > 0.0 && p.area > ZERO_AREA * size * size);
-    let Some(plane) = plane else {
-        err(
-            format!("{at}.vertices"),
-            format!("{:?}", s.vertices),
-            "has zero area (coincident or collinear vertices)".into(),
-        );
-        return;
-    };
-
-    let (worst, distance) = worst_distance(&v, &plane);
-    let limit = PLANARITY_TOLERANCE * size;
-    if distance > limit {
-        err(
-            format!("{at}.vertices[{worst}]"),
-            format!(
-                "{:?}, {distance:.6} from the best-fit plane",
-                s.vertices[worst]
-            ),
-            format!(
-                "a surface must be planar: every vertex within {PLANARITY_TOLERANCE:e} x the \
-                 polygon's size ({limit:.3e}) of its best-fit plane; split it into triangles"
-            ),
-        );
-    }
-
     let n = v.len();
-    let (bad, total_turn) = convex::corners(&v, plane.normal, ZERO_AREA * size);
-    for corner in &bad {
-        match *corner {
-            Corner::Repeat(k) => err(
+    for problem in polygon::problems(&v) {
+        match problem {
+            // Excluded above: 3 or more finite vertices.
+            Problem::NotAPolygon => {}
+            Problem::ZeroArea => err(
+                format!("{at}.vertices"),
+                format!("{:?}", s.vertices),
+                "has zero area (coincident or collinear vertices)".into(),
+            ),
+            Problem::NotPlanar {
+                vertex,
+                distance,
+                limit,
+            } => err(
+                format!("{at}.vertices[{vertex}]"),
+                format!(
+                    "{:?}, {distance:.6} from the best-fit plane",
+                    s.vertices[vertex]
+                ),
+                format!(
+                    "a surface must be planar: every vertex within {PLANARITY_TOLERANCE:e} x the \
+                     polygon's size ({limit:.3e}) of its best-fit plane; split it into triangles"
+                ),
+            ),
+            Problem::Corner(Corner::Repeat(k)) => err(
                 format!("{at}.vertices[{}]", (k + 1) % n),
                 format!("{:?}", s.vertices[(k + 1) % n]),
                 format!("repeats vertex {k}: consecutive vertices must differ"),
             ),
-            Corner::Straight(k) => err(
+            Problem::Corner(Corner::Straight(k)) => err(
                 format!("{at}.vertices[{k}]"),
                 format!("{:?}", s.vertices[k]),
                 "is collinear with its neighbours: remove it (a straight corner has no \
                  defined turn)"
                     .into(),
             ),
-            Corner::Reflex(k) => err(
+            Problem::Corner(Corner::Reflex(k)) => err(
                 format!("{at}.vertices[{k}]"),
                 format!("{:?}", s.vertices[k]),
                 "makes the polygon non-convex (the corner turns clockwise seen from the front, \
                  or folds back); split the surface into convex pieces"
                     .into(),
             ),
-        }
-    }
-    if bad.is_empty() && total_turn > 3.0 * std::f64::consts::PI {
-        err(
-            format!("{at}.vertices"),
-            format!(
-                "turns {:.1} times around",
-                total_turn / std::f64::consts::TAU
+            Problem::Crossed { turns } => err(
+                format!("{at}.vertices"),
+                format!("turns {turns:.1} times around"),
+                "is not convex: its edges cross (the outline must wind around once)".into(),
             ),
-            "is not convex: its edges cross (the outline must wind around once)".into(),
-        );
+        }
     }
 }
 

@@ -1,4 +1,5 @@
-//! The radiosity program's built-in scenes: the Cornell box and a closed unit box, embedded from
+//! The radiosity program's built-in scenes: the Cornell box, the Cornell box without its blocks
+//! and a closed unit box, embedded from
 //! `programs/radiosity/scenes/*.ron` so the program runs without files, and closed boxes of any
 //! size built in code for tests at other scales.
 //!
@@ -11,6 +12,10 @@ use crate::scene::parse_radiosity_scene;
 /// The text of `scenes/cornell-box.ron`: the Cornell box in millimetres, open at z = 0.
 pub const CORNELL_BOX: &str = include_str!("../scenes/cornell-box.ron");
 
+/// The text of `scenes/cornell-empty.ron`: the Cornell box's shell, materials, light and open
+/// front, without the two blocks.
+pub const CORNELL_EMPTY: &str = include_str!("../scenes/cornell-empty.ron");
+
 /// The text of `scenes/empty-box.ron`: a closed unit box whose top face emits.
 pub const EMPTY_BOX: &str = include_str!("../scenes/empty-box.ron");
 
@@ -21,6 +26,16 @@ pub const EMPTY_BOX: &str = include_str!("../scenes/empty-box.ron");
 pub fn cornell_box() -> RadiosityScene {
     parse_radiosity_scene("cornell-box.ron", CORNELL_BOX)
         .expect("the embedded cornell-box.ron is tested to parse and check")
+}
+
+/// The Cornell box without its blocks, parsed from [`CORNELL_EMPTY`]: [`cornell_box`]'s
+/// surfaces of the shell and the light, in the same order, nothing else changed.
+///
+/// # Panics
+/// Never in a released build: the embedded file is parsed and checked by this crate's tests.
+pub fn cornell_empty() -> RadiosityScene {
+    parse_radiosity_scene("cornell-empty.ron", CORNELL_EMPTY)
+        .expect("the embedded cornell-empty.ron is tested to parse and check")
 }
 
 /// The closed unit box, parsed from [`EMPTY_BOX`]; its surfaces equal `closed_box(1.0, 0.5)`'s.

@@ -13,7 +13,7 @@ use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::rc::Rc;
 
-use pxpl5_config::FixedFormat;
+use pxpl5_config::{FixedFormat, RendererConfig};
 use pxpl5_geom::DVec3;
 use pxpl5_machine::{CommandBatch, Cost, Gp, Op, Payload, ProgramError, Tag, Unit};
 use pxpl5_renderer::{Command, Rect, readback};
@@ -211,6 +211,91 @@ impl View {
     }
 }
 
+/// The largest resolution the views of `method` can use on `renderers` boards of `rc` (0 if
+/// none):
+///
+/// - the hemisphere's disk of n pixels is cut into ceil(n / side)^2 tiles of side x side pixels
+///   (side: the board's shorter dimension), one per Renderer, so ceil(n / side)^2 <= renderers;
+/// - a hemicube face must fit one board: n <= side;
+/// - every view's pixel addresses (its board's origin plus the board's array) must lie below
+///   2^`renderer.qee.coordinate_bits`: a tile's origin is (tx, ty) x side, a side face's origin
+///   row is n / 2.
+///
+/// The hemicube also needs an even n: [`check_resolution`].
+pub fn max_resolution(method: Method, renderers: u32, rc: &RendererConfig) -> u32 {
+    let side = u64::from(rc.width.min(rc.height));
+    let (width, height) = (u64::from(rc.width), u64::from(rc.height));
+    let addresses = 1u64.checked_shl(rc.qee.coordinate_bits).unwrap_or(u64::MAX);
+    let max = match method {
+        Method::Hemisphere => {
+            // Tiles per row: by boards, t^2 <= renderers; by addresses, the last tile's origin
+            // (t - 1) side plus the array must fit.
+            let by_boards = u64::from(renderers).isqrt();
+            let by_addresses = match addresses.checked_sub(width.max(height)) {
+                Some(room) if side > 0 => room / side + 1,
+                _ => 0,
+            };
+            by_boards.min(by_addresses) * side
+        }
+        Method::Hemicube => {
+            // A side face's origin row n / 2 plus the array's height must fit.
+            let by_addresses = addresses.saturating_sub(height).saturating_mul(2) + 1;
+            side.min(by_addresses) & !1
+        }
+    };
+    u32::try_from(max).unwrap_or(u32::MAX)
+}
+
+/// Whether the views of `method` can use a resolution of `n` pixels across on `renderers`
+/// boards of `rc`: at least 1, at most [`max_resolution`], and even for the hemicube (a side face
+/// is the upper half of a face of n pixels: with n odd it would take the middle row, of weight 0,
+/// instead of the top one). The error says why not and what the limit is.
+pub fn check_resolution(
+    method: Method,
+    n: u32,
+    renderers: u32,
+    rc: &RendererConfig,
+) -> Result<(), String> {
+    let max = max_resolution(method, renderers, rc);
+    let machine = format!(
+        "{renderers} Renderer{} of {} x {} pixels with pixel addresses below 2^{} \
+         (renderer.qee.coordinate_bits)",
+        if renderers == 1 { "" } else { "s" },
+        rc.width,
+        rc.height,
+        rc.qee.coordinate_bits
+    );
+    let (name, least) = match method {
+        Method::Hemisphere => ("hemisphere", 1),
+        Method::Hemicube => ("hemicube", 2),
+    };
+    if max < least {
+        return Err(format!(
+            "the {name} cannot be drawn on {machine} at any resolution"
+        ));
+    }
+    let range = match method {
+        Method::Hemisphere => format!("takes 1 to {max} pixels across"),
+        Method::Hemicube => format!("takes an even number of pixels from 2 to {max}"),
+    };
+    if n < least || n > max {
+        let why = match method {
+            Method::Hemisphere => format!(
+                "a disk of n pixels needs ceil(n / {side})^2 Renderers",
+                side = rc.width.min(rc.height)
+            ),
+            Method::Hemicube => "a face must fit one Renderer".to_string(),
+        };
+        return Err(format!("the {name} {range} on {machine}: {why}"));
+    }
+    if method == Method::Hemicube && n % 2 == 1 {
+        return Err(format!(
+            "the {name} {range}: a side face is the upper half of a face of n pixels"
+        ));
+    }
+    Ok(())
+}
+
 /// What the views of a shot depend on: (method, resolution, exact delta rule, Renderers, side).
 type ViewsKey = (Method, u32, bool, u32, u32);
 
@@ -221,13 +306,16 @@ thread_local! {
     static VIEWS: RefCell<BTreeMap<ViewsKey, Vec<View>>> = const { RefCell::new(BTreeMap::new()) };
 }
 
-/// The views of `opts` on a machine with `renderers` boards of `side` pixels (computed once per
-/// key and host thread, see `VIEWS`).
+/// The views of `opts` on a machine with `renderers` boards of `rc` (computed once per key and
+/// host thread, see `VIEWS`), or why its resolution cannot be used ([`check_resolution`]).
 pub(crate) fn views(
     opts: &FfOptions,
     renderers: u32,
-    side: u32,
+    rc: &RendererConfig,
 ) -> Result<Vec<View>, ProgramError> {
+    check_resolution(opts.method, opts.resolution, renderers, rc)
+        .map_err(|e| ProgramError(format!("resolution {}: {e}", opts.resolution)))?;
+    let side = rc.width.min(rc.height);
     let key = (
         opts.method,
         opts.resolution,
@@ -243,19 +331,13 @@ pub(crate) fn views(
     Ok(v)
 }
 
+/// The views of a resolution that [`check_resolution`] accepts.
 fn compute_views(opts: &FfOptions, renderers: u32, side: u32) -> Result<Vec<View>, ProgramError> {
     let n = opts.resolution;
     let mut out = Vec::new();
     match opts.method {
         Method::Hemisphere => {
             let tiles = n.div_ceil(side);
-            if tiles * tiles > renderers {
-                return Err(ProgramError(format!(
-                    "a hemisphere of {n} pixels needs {} Renderers of {side} x {side}; the \
-                     machine has {renderers}",
-                    tiles * tiles
-                )));
-            }
             let table = hemisphere_delta_ff(n as usize, opts.exact_delta);
             for ty in 0..tiles {
                 for tx in 0..tiles {
@@ -281,11 +363,6 @@ fn compute_views(opts: &FfOptions, renderers: u32, side: u32) -> Result<Vec<View
             }
         }
         Method::Hemicube => {
-            if n > side {
-                return Err(ProgramError(format!(
-                    "a hemicube face of {n} pixels does not fit a {side} x {side} Renderer"
-                )));
-            }
             let mut total = 0.0;
             let mut faces = Vec::new();
             for (i, face) in Face::ALL.into_iter().enumerate() {
@@ -394,7 +471,6 @@ pub async fn shoot(
     items: Option<&ItemBuffers>,
 ) -> Result<Vec<Partial>, ProgramError> {
     let rc = gp.renderer_config();
-    let side = rc.width.min(rc.height);
     let setting = Setting {
         fields: ViewFields::allocate(rc.pixel_memory_bits)
             .map_err(|e| ProgramError(e.to_string()))?,
@@ -403,10 +479,7 @@ pub async fn shoot(
         gps: gp.gp_count(),
     };
     let renderers = gp.renderer_count();
-    let rounds = rounds(
-        shot_views(opts, shooters.len(), renderers, side)?,
-        renderers,
-    );
+    let rounds = rounds(shot_views(opts, shooters.len(), renderers, rc)?, renderers);
     let local = transform_receivers(gp, shooters, receivers).await;
     let mut partial = vec![Partial::new(); shooters.len()];
     for round in &rounds {
@@ -428,9 +501,9 @@ fn shot_views(
     opts: &FfOptions,
     shooters: usize,
     renderers: u32,
-    side: u32,
+    rc: &RendererConfig,
 ) -> Result<Vec<View>, ProgramError> {
-    let one = views(opts, renderers, side)?;
+    let one = views(opts, renderers, rc)?;
     let mut all = Vec::new();
     for s in 0..shooters {
         for v in &one {
@@ -738,4 +811,99 @@ fn may_touch(verts: &[DVec3], face: Face) -> bool {
         }),
     ];
     planes.iter().all(|pl| verts.iter().any(|v| pl(*v) >= 0.0))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn seed() -> RendererConfig {
+        pxpl5_config::default_config().renderer
+    }
+
+    #[test]
+    fn the_largest_resolutions_of_the_shipped_machines() {
+        let rc = seed();
+        // 4 boards of 128: a 2 x 2 disk; a face fits one board.
+        assert_eq!(max_resolution(Method::Hemisphere, 4, &rc), 256);
+        assert_eq!(max_resolution(Method::Hemicube, 4, &rc), 128);
+        // 16 boards (the paper's machine): 4 x 4 tiles; 15 boards: still 3 x 3.
+        assert_eq!(max_resolution(Method::Hemisphere, 16, &rc), 512);
+        assert_eq!(max_resolution(Method::Hemisphere, 15, &rc), 384);
+        assert_eq!(max_resolution(Method::Hemisphere, 1, &rc), 128);
+        // Addresses: 2^12 = 4096 hold 32 tiles of 128, whatever the boards.
+        assert_eq!(max_resolution(Method::Hemisphere, u32::MAX, &rc), 4096);
+    }
+
+    #[test]
+    fn addresses_bound_tiles_and_side_faces() {
+        let mut rc = seed();
+        // 2^8 = 256 addresses: two tiles of 128 (origins 0 and 128), a side face's origin row
+        // n / 2 at most 128.
+        rc.qee.coordinate_bits = 8;
+        assert_eq!(max_resolution(Method::Hemisphere, 100, &rc), 256);
+        assert_eq!(max_resolution(Method::Hemicube, 100, &rc), 128);
+        // 2^7 = 128: one tile; no room above the board for a side face's origin.
+        rc.qee.coordinate_bits = 7;
+        assert_eq!(max_resolution(Method::Hemisphere, 100, &rc), 128);
+        assert_eq!(max_resolution(Method::Hemicube, 100, &rc), 0);
+        let e = check_resolution(Method::Hemicube, 128, 4, &rc).unwrap_err();
+        assert!(e.contains("at any resolution"), "{e}");
+        // A 128 x 64 board under 2^7 leaves 64 rows above it for a side face's origin (n up to
+        // 129), but a face must fit the board's shorter side, 64.
+        rc.height = 64;
+        assert_eq!(max_resolution(Method::Hemicube, 1, &rc), 64);
+    }
+
+    #[test]
+    fn check_resolution_names_the_limit() {
+        let rc = seed();
+        assert!(check_resolution(Method::Hemisphere, 1, 4, &rc).is_ok());
+        assert!(check_resolution(Method::Hemisphere, 255, 4, &rc).is_ok());
+        assert!(check_resolution(Method::Hemicube, 2, 4, &rc).is_ok());
+        assert!(check_resolution(Method::Hemicube, 128, 4, &rc).is_ok());
+        let e = check_resolution(Method::Hemisphere, 0, 4, &rc).unwrap_err();
+        assert!(e.contains("takes 1 to 256 pixels across"), "{e}");
+        let e = check_resolution(Method::Hemisphere, 257, 4, &rc).unwrap_err();
+        assert!(
+            e.contains("1 to 256") && e.contains("4 Renderers of 128 x 128"),
+            "{e}"
+        );
+        let e = check_resolution(Method::Hemicube, 129, 4, &rc).unwrap_err();
+        assert!(e.contains("from 2 to 128"), "{e}");
+        let e = check_resolution(Method::Hemicube, 127, 4, &rc).unwrap_err();
+        assert!(e.contains("even") && e.contains("upper half"), "{e}");
+        // No overflow at the type's end.
+        assert!(check_resolution(Method::Hemisphere, u32::MAX, u32::MAX, &rc).is_err());
+    }
+
+    /// An odd hemicube would leave out each side face's top row: the rows a side face takes are
+    /// the upper half of the face's, by `Face::row0` and `Face::rows`.
+    #[test]
+    fn an_odd_hemicube_side_face_would_miss_its_top_row() {
+        let side = Face::ALL[1];
+        assert_eq!(side.row0(4) + side.rows(4), 4);
+        assert_eq!(side.row0(3) + side.rows(3), 2, "row 2 of 3 is left out");
+    }
+
+    #[test]
+    fn views_refuse_a_resolution_they_cannot_use() {
+        let rc = seed();
+        let opts = |method, resolution| FfOptions {
+            method,
+            resolution,
+            ..FfOptions::default()
+        };
+        let e = views(&opts(Method::Hemisphere, 0), 4, &rc).unwrap_err();
+        assert!(e.0.starts_with("resolution 0: the hemisphere"), "{}", e.0);
+        assert!(views(&opts(Method::Hemicube, 127), 4, &rc).is_err());
+        assert_eq!(
+            views(&opts(Method::Hemicube, 128), 4, &rc).unwrap().len(),
+            5
+        );
+        assert_eq!(
+            views(&opts(Method::Hemisphere, 256), 4, &rc).unwrap().len(),
+            4
+        );
+    }
 }

@@ -73,7 +73,6 @@ pub fn cornell_stream(
     let (_, shooters) =
         solver::progressive_by_rows(&patches, |i| solver::exact_row(&patches, i), 0.0, shots);
     let rc = &cfg.renderer;
-    let side = rc.width.min(rc.height);
     let format = rc.qee.coefficient_format;
     let fields =
         ViewFields::allocate(rc.pixel_memory_bits).map_err(|e| ProgramError(e.to_string()))?;
@@ -89,7 +88,7 @@ pub fn cornell_stream(
             .map(|p| p.vertices.iter().map(|&v| frame.local(v)).collect())
             .collect();
         // Every view of the shot on one board: as many Renderers as views.
-        for v in views(opts, u32::MAX, side)? {
+        for v in views(opts, u32::MAX, rc)? {
             commands.extend(v.setup_commands(&fields, format));
             commands.push(completion_probe(&fields, 0));
             for (j, verts) in local.iter().enumerate() {

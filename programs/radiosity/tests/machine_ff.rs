@@ -9,6 +9,7 @@ use pxpl5_geom::DVec3;
 use pxpl5_geom::rng::Lcg;
 use pxpl5_machine::{Machine, Recorder, RunOptions};
 use pxpl5_radiosity::exact::point_to_polygon;
+use pxpl5_radiosity::experiment;
 use pxpl5_radiosity::mesh::mesh;
 use pxpl5_radiosity::program::{FormFactorProgram, FormFactorResult, RadiosityProgram};
 use pxpl5_radiosity::shot::{FfOptions, Method};
@@ -554,4 +555,29 @@ fn turning_the_hemicube_removes_its_bias_in_an_axis_aligned_box() {
     );
     // Reproducible: the same seed, the same form factor.
     assert_eq!(run(Some(5)), run(Some(5)));
+}
+
+/// `experiment::form_factor` gives the machine the polygon in the point's frame: the same run as
+/// with the coordinates as given (to the bit and the cycle), and the same again with point and
+/// polygon scaled by 2^600 or 2^-600, where squares of the coordinates overflow or underflow.
+#[test]
+fn form_factor_on_the_machine_is_the_same_at_any_power_of_two_scale() {
+    let cfg = pxpl5_config::default_config();
+    let p = DVec3::new(0.25, -0.5, 0.125);
+    let n = DVec3::new(0.0, 0.0, 1.0);
+    let poly = square(p + DVec3::new(0.1, 0.2, 1.0), 0.6, p);
+    let opts = options(Method::Hemisphere, 64);
+    let base = experiment::form_factor(&cfg, p, n, poly.clone(), opts).expect("runs");
+    assert!(base.form_factor > 0.1, "{}", base.form_factor);
+    assert_eq!(
+        machine_ff(p, n, vec![poly.clone()], opts),
+        [base.form_factor]
+    );
+    for k in [600, -600] {
+        let s = 2f64.powi(k);
+        let scaled: Vec<DVec3> = poly.iter().map(|&v| v * s).collect();
+        let run = experiment::form_factor(&cfg, p * s, n, scaled, opts).expect("runs");
+        assert_eq!(run.form_factor, base.form_factor, "2^{k}");
+        assert_eq!(run.stats.end, base.stats.end, "2^{k}");
+    }
 }

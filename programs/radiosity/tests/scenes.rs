@@ -1,4 +1,5 @@
-//! Tests of the built-in scenes (the Cornell box and the closed box): they are valid, they mesh,
+//! Tests of the built-in scenes (the Cornell box, with and without its blocks, and the closed
+//! box): they are valid, they mesh,
 //! their normals face the right way, the Cornell box's quirks are handled as its header says;
 //! and bad scene files give errors that name the surface, never a panic.
 
@@ -6,7 +7,9 @@ use pxpl5_geom::DVec3;
 use pxpl5_radiosity::exact::point_to_polygon;
 use pxpl5_radiosity::mesh::{MeshError, mesh};
 use pxpl5_radiosity::scene::{RadiosityScene, check_radiosity_scene, parse_radiosity_scene};
-use pxpl5_radiosity::scenes::{CORNELL_BOX, EMPTY_BOX, closed_box, cornell_box, empty_box};
+use pxpl5_radiosity::scenes::{
+    CORNELL_BOX, CORNELL_EMPTY, EMPTY_BOX, closed_box, cornell_box, cornell_empty, empty_box,
+};
 
 fn close(a: f64, b: f64, rel: f64) -> bool {
     (a - b).abs() <= rel * a.abs().max(b.abs())
@@ -38,6 +41,64 @@ fn built_in_scenes_are_valid_and_mesh() {
     // The file and the code build the same box.
     assert_eq!(empty.surfaces, closed_box(1.0, 0.5).surfaces);
     assert!(EMPTY_BOX.contains("sum to 1"));
+}
+
+#[test]
+fn cornell_empty_is_the_cornell_box_without_its_blocks() {
+    let empty = cornell_empty();
+    check_radiosity_scene(&empty).unwrap();
+    let full = cornell_box();
+    // The same surfaces, in the same order, minus the blocks': names, objects, vertices,
+    // materials alike.
+    let shell: Vec<_> = full
+        .surfaces
+        .iter()
+        .enumerate()
+        .filter(|&(k, _)| !object(&full, k).ends_with("block"))
+        .map(|(_, s)| s.clone())
+        .collect();
+    assert_eq!(shell.len(), 10);
+    assert_eq!(empty.surfaces, shell);
+    assert_eq!(
+        full.surfaces.len() - shell.len(),
+        10,
+        "two blocks of five faces"
+    );
+    // Same camera and opening; it meshes into the Cornell box's patches minus the blocks'.
+    assert_eq!(empty.camera, full.camera);
+    let patches = mesh(&empty, 90.0).unwrap();
+    let full_patches = mesh(&full, 90.0).unwrap();
+    let blocks = full_patches
+        .iter()
+        .filter(|p| object(&full, p.surface).ends_with("block"))
+        .count();
+    assert_eq!(patches.len(), full_patches.len() - blocks);
+    assert!(patches.iter().all(|p| p.area > 0.0 && p.centre.is_finite()));
+    let area: f64 = patches.iter().map(|p| p.area).sum();
+    let shell_area: f64 = shell.iter().map(|s| s.plane().unwrap().area).sum();
+    assert!(close(area, shell_area, 1e-12), "{area} {shell_area}");
+    // Nothing inside hides anything: every vertex lies on or in front of every surface's plane
+    // (the shell is convex), as the header says.
+    for s in &empty.surfaces {
+        let plane = s.plane().unwrap();
+        for t in &empty.surfaces {
+            for v in t.points() {
+                let side = plane.normal.dot(v - plane.point);
+                assert!(side > -1e-9, "{} is behind {} by {side}", t.name, s.name);
+            }
+        }
+    }
+    // Open at the front, closed behind, as the Cornell box's shell.
+    let p = DVec3::new(278.0, 274.0, 280.0);
+    let faces: Vec<Vec<DVec3>> = empty.surfaces.iter().map(|s| s.points()).collect();
+    let sum = |n: DVec3| -> f64 { faces.iter().map(|f| point_to_polygon(p, n, f)).sum() };
+    assert!((sum(DVec3::Z) - 1.0).abs() < 1e-9);
+    assert!(sum(DVec3::NEG_Z) < 0.7);
+    for word in ["without its two blocks", "cornell-box.ron", "sum to 1"] {
+        assert!(CORNELL_EMPTY.contains(word), "{word}");
+    }
+    assert_eq!(empty.name, "Cornell box, empty");
+    assert!(empty.provenance.contains("without the two blocks"));
 }
 
 #[test]
