@@ -143,20 +143,27 @@ fn out_dir(name: &str) -> PathBuf {
     d
 }
 
+/// `pxpl5 run` on the small scene of the minimal machine: the arguments every such test starts
+/// with.
+const SMALL_RUN: [&str; 5] = [
+    "run",
+    "--config",
+    "machine-configs/minimal.ron",
+    "--scene",
+    "programs/polygons/scenes/small.ron",
+];
+
 fn run_small(out: &std::path::Path) -> Output {
-    pxpl5(&[
-        "run",
-        "--config",
-        "machine-configs/minimal.ron",
-        "--scene",
-        "programs/polygons/scenes/small.ron",
-        "--out",
-        out.to_str().unwrap(),
-        "--trace",
-        out.join("trace.json").to_str().unwrap(),
-        "--vcd",
-        out.join("trace.vcd").to_str().unwrap(),
-    ])
+    let (trace, vcd) = (out.join("trace.json"), out.join("trace.vcd"));
+    run_small_with(
+        out,
+        &[
+            "--trace",
+            trace.to_str().unwrap(),
+            "--vcd",
+            vcd.to_str().unwrap(),
+        ],
+    )
 }
 
 #[test]
@@ -205,17 +212,7 @@ fn run_writes_outputs_and_is_deterministic() {
 #[test]
 fn fidelity_word_is_a_hidden_alias_of_integer() {
     let run = |fidelity: &str, d: &std::path::Path| {
-        let out = pxpl5(&[
-            "run",
-            "--config",
-            "machine-configs/minimal.ron",
-            "--scene",
-            "programs/polygons/scenes/small.ron",
-            "--fidelity",
-            fidelity,
-            "--out",
-            d.to_str().unwrap(),
-        ]);
+        let out = run_small_with(d, &["--fidelity", fidelity]);
         assert!(out.status.success(), "{}", text(&out.stderr));
         std::fs::read_to_string(d.join("stats.json")).unwrap()
     };
@@ -709,15 +706,8 @@ fn formfactor_is_the_same_at_any_power_of_two_scale() {
 fn run_small_logged(out: &std::path::Path, flags: &[&str], rust_log: Option<&str>) -> Output {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_pxpl5"));
     cmd.args(flags)
-        .args([
-            "run",
-            "--config",
-            "machine-configs/minimal.ron",
-            "--scene",
-            "programs/polygons/scenes/small.ron",
-            "--out",
-            out.to_str().unwrap(),
-        ])
+        .args(SMALL_RUN)
+        .args(["--out", out.to_str().unwrap()])
         .current_dir(root());
     match rust_log {
         Some(filter) => cmd.env("RUST_LOG", filter),
@@ -834,15 +824,7 @@ fn a_closed_stdout_ends_quietly_with_exit_code_0() {
     let out_d = out_dir("closed-stdout");
     let radiosity = radiosity_small(&out_d);
     let run_d = out_dir("closed-stdout-run");
-    let run = [
-        "run",
-        "--config",
-        "machine-configs/minimal.ron",
-        "--scene",
-        "programs/polygons/scenes/small.ron",
-        "--out",
-        run_d.to_str().unwrap(),
-    ];
+    let run = [&SMALL_RUN[..], &["--out", run_d.to_str().unwrap()]].concat();
     let square = "-1,-1,1;1,-1,1;1,1,1;-1,1,1";
     let formfactor = [
         "formfactor",
@@ -967,15 +949,8 @@ fn a_full_stdout_is_an_error_naming_stdout() {
 
 /// `pxpl5 run` of the small scene on the minimal machine into `out`, with `extra` flags.
 fn run_small_with(out: &Path, extra: &[&str]) -> Output {
-    let mut args = vec![
-        "run",
-        "--config",
-        "machine-configs/minimal.ron",
-        "--scene",
-        "programs/polygons/scenes/small.ron",
-        "--out",
-        out.to_str().unwrap(),
-    ];
+    let mut args = SMALL_RUN.to_vec();
+    args.extend(["--out", out.to_str().unwrap()]);
     args.extend_from_slice(extra);
     pxpl5(&args)
 }
@@ -1193,12 +1168,8 @@ fn a_failed_write_takes_back_the_files_written_before_it() {
         .open("/dev/full")
         .unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_pxpl5"))
+        .args(SMALL_RUN)
         .args([
-            "run",
-            "--config",
-            "machine-configs/minimal.ron",
-            "--scene",
-            "programs/polygons/scenes/small.ron",
             "--out",
             run_d.join("new/dirs").to_str().unwrap(),
             "--trace",
