@@ -653,7 +653,7 @@ pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
         None => None,
         Some(method) => {
             let cfg = config_cmd::load(args.config.as_deref())?;
-            check_resolution(method, args.resolution, cfg.renderer.count, &cfg.renderer)
+            check_resolution(method, args.resolution, &cfg.renderer)
                 .map_err(|e| UserError(format!("--resolution {}: {e}", args.resolution)))?;
             let options = FfOptions {
                 method,

@@ -225,15 +225,23 @@ impl CommandBatch {
         }
     }
 
+    /// The Renderer the batch is for.
+    pub fn renderer(&self) -> u32 {
+        self.renderer
+    }
+
     /// Add a group of commands that must travel in one message (one receiver's, one triangle's);
-    /// first send what the batch holds if the group would not fit beside it.
-    pub async fn push(&mut self, gp: &Gp, group: Vec<Command>) {
+    /// first send what the batch holds if the group would not fit beside it. Whether it sent a
+    /// message (a program drawing into several boards can then turn to another).
+    pub async fn push(&mut self, gp: &Gp, group: Vec<Command>) -> bool {
         let w = gp.command_words(&group);
-        if self.words + w > gp.max_message_words && !self.commands.is_empty() {
+        let full = self.words + w > gp.max_message_words && !self.commands.is_empty();
+        if full {
             self.send(gp).await;
         }
         self.commands.extend(group);
         self.words += w;
+        full
     }
 
     /// Send what the batch holds; whether the batch sent anything at all, now or before.
@@ -395,6 +403,16 @@ impl Gp {
             }
             self.shared.borrow_mut().stash.push_back(m);
         }
+    }
+
+    /// Whether a message `want` accepts has arrived by now (received earlier and stashed, or
+    /// delivered and not yet received): a look at the ring interface's status, not a receive, so
+    /// nothing is charged (\[choice\]: an i860 load of a status register, a few cycles, where a
+    /// receive costs `message_receive`). A program with work in hand uses it to receive only what
+    /// is there.
+    pub fn has_message(&self, want: impl Fn(&Message) -> bool) -> bool {
+        let s = self.shared.borrow();
+        s.stash.iter().any(&want) || s.mailbox.iter().any(&want)
     }
 
     /// The next Data message with `tag`.

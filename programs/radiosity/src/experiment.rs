@@ -123,12 +123,13 @@ pub fn phase_times(stats: &RunStats) -> BTreeMap<String, f64> {
         .collect()
 }
 
-/// The phase that took the most time, `done` (the GPs' idle tail) excepted; "none" when there is
-/// no other. A tie goes to the phase whose name comes first.
+/// The GP activity that took the most time, `waiting` (a GP with nothing to do until a message
+/// arrives) and `done` (the GPs' idle tail) excepted; "none" when there is no other. A tie goes to
+/// the phase whose name comes first.
 pub fn bottleneck(phases: &BTreeMap<String, f64>) -> String {
     let mut best = ("none", -1.0);
     for (name, &seconds) in phases {
-        if name != "done" && seconds > best.1 {
+        if name != "done" && name != "waiting" && seconds > best.1 {
             best = (name, seconds);
         }
     }

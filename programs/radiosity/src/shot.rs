@@ -6,16 +6,16 @@
 //! Ordering between senders is made explicit, since the ring only keeps order between two units:
 //! a Renderer's set-up is followed by a one-pixel readback to GP 0 (a fence: it arrives after the
 //! set-up has executed), and every GP fences each Renderer it drew on before it reports to GP 0,
-//! which then orders the readbacks. Views are processed in rounds of at most one view per
-//! Renderer.
+//! which then orders the readbacks. Views are scheduled as a list, not in rounds: a board whose
+//! view has been read back takes the next view at once ([`shoot`]).
 
 use std::cell::RefCell;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 use std::rc::Rc;
 
 use pxpl5_config::{FixedFormat, RendererConfig};
 use pxpl5_geom::DVec3;
-use pxpl5_machine::{CommandBatch, Cost, Gp, Op, Payload, ProgramError, Tag, Unit};
+use pxpl5_machine::{CommandBatch, Cost, Gp, Message, Op, Payload, ProgramError, Tag, Unit};
 use pxpl5_renderer::{Command, Rect, readback};
 
 use crate::views::{
@@ -101,7 +101,6 @@ pub(crate) struct View {
     shooter: usize,
     /// Its place among one shooter's views: the tile of the disk (row-major) or the face.
     tile: u32,
-    renderer: u32,
     kind: ViewKind,
     /// QEE origin of the board.
     origin: (u32, u32),
@@ -193,9 +192,15 @@ impl View {
         Ok(drawn)
     }
 
-    /// The readback of band `band` of `gps` of this view's IDs to GP `band`; `None` for an empty
-    /// band.
-    pub(crate) fn band_readback(&self, f: &ViewFields, band: u32, gps: u32) -> Option<Command> {
+    /// The readback of band `band` of `gps` of this view's IDs to GP `band`, with `tag` (a
+    /// [`Reply`]); `None` for an empty band.
+    pub(crate) fn band_readback(
+        &self,
+        f: &ViewFields,
+        band: u32,
+        gps: u32,
+        tag: u32,
+    ) -> Option<Command> {
         let (y0, y1) = band_rows(self.rows, gps, band);
         (y0 < y1).then(|| Command::Readback {
             field: f.id,
@@ -206,36 +211,34 @@ impl View {
                 height: y1 - y0,
             },
             dest: Unit::Gp(band).encode(),
-            tag: 0,
+            tag,
         })
     }
 }
 
-/// The largest resolution the views of `method` can use on `renderers` boards of `rc` (0 if
-/// none):
+/// The largest resolution the views of `method` can use on boards of `rc` (0 if none):
 ///
 /// - the hemisphere's disk of n pixels is cut into ceil(n / side)^2 tiles of side x side pixels
-///   (side: the board's shorter dimension), one per Renderer, so ceil(n / side)^2 <= renderers;
+///   (side: the board's shorter dimension), each a view of its own, scheduled on the Renderers
+///   like any other view (a machine with fewer boards than tiles draws them in turn);
 /// - a hemicube face must fit one board: n <= side;
 /// - every view's pixel addresses (its board's origin plus the board's array) must lie below
 ///   2^`renderer.qee.coordinate_bits`: a tile's origin is (tx, ty) x side, a side face's origin
 ///   row is n / 2.
 ///
 /// The hemicube also needs an even n: [`check_resolution`].
-pub fn max_resolution(method: Method, renderers: u32, rc: &RendererConfig) -> u32 {
+pub fn max_resolution(method: Method, rc: &RendererConfig) -> u32 {
     let side = u64::from(rc.width.min(rc.height));
     let (width, height) = (u64::from(rc.width), u64::from(rc.height));
     let addresses = 1u64.checked_shl(rc.qee.coordinate_bits).unwrap_or(u64::MAX);
     let max = match method {
         Method::Hemisphere => {
-            // Tiles per row: by boards, t^2 <= renderers; by addresses, the last tile's origin
-            // (t - 1) side plus the array must fit.
-            let by_boards = u64::from(renderers).isqrt();
-            let by_addresses = match addresses.checked_sub(width.max(height)) {
+            // Tiles per row: the last tile's origin (t - 1) side plus the array must fit.
+            let tiles = match addresses.checked_sub(width.max(height)) {
                 Some(room) if side > 0 => room / side + 1,
                 _ => 0,
             };
-            by_boards.min(by_addresses) * side
+            tiles * side
         }
         Method::Hemicube => {
             // A side face's origin row n / 2 plus the array's height must fit.
@@ -246,24 +249,16 @@ pub fn max_resolution(method: Method, renderers: u32, rc: &RendererConfig) -> u3
     u32::try_from(max).unwrap_or(u32::MAX)
 }
 
-/// Whether the views of `method` can use a resolution of `n` pixels across on `renderers`
-/// boards of `rc`: at least 1, at most [`max_resolution`], and even for the hemicube (a side face
-/// is the upper half of a face of n pixels: with n odd it would take the middle row, of weight 0,
-/// instead of the top one). The error says why not and what the limit is.
-pub fn check_resolution(
-    method: Method,
-    n: u32,
-    renderers: u32,
-    rc: &RendererConfig,
-) -> Result<(), String> {
-    let max = max_resolution(method, renderers, rc);
+/// Whether the views of `method` can use a resolution of `n` pixels across on boards of `rc`:
+/// at least 1, at most [`max_resolution`], and even for the hemicube (a side face is the upper
+/// half of a face of n pixels: with n odd it would take the middle row, of weight 0, instead of
+/// the top one). The error says why not and what the limit is.
+pub fn check_resolution(method: Method, n: u32, rc: &RendererConfig) -> Result<(), String> {
+    let max = max_resolution(method, rc);
     let machine = format!(
-        "{renderers} Renderer{} of {} x {} pixels with pixel addresses below 2^{} \
+        "Renderers of {} x {} pixels with pixel addresses below 2^{} \
          (renderer.qee.coordinate_bits)",
-        if renderers == 1 { "" } else { "s" },
-        rc.width,
-        rc.height,
-        rc.qee.coordinate_bits
+        rc.width, rc.height, rc.qee.coordinate_bits
     );
     let (name, least) = match method {
         Method::Hemisphere => ("hemisphere", 1),
@@ -281,7 +276,7 @@ pub fn check_resolution(
     if n < least || n > max {
         let why = match method {
             Method::Hemisphere => format!(
-                "a disk of n pixels needs ceil(n / {side})^2 Renderers",
+                "the disk's tiles of {side} x {side} pixels must have addresses",
                 side = rc.width.min(rc.height)
             ),
             Method::Hemicube => "a face must fit one Renderer".to_string(),
@@ -296,8 +291,8 @@ pub fn check_resolution(
     Ok(())
 }
 
-/// What the views of a shot depend on: (method, resolution, exact delta rule, Renderers, side).
-type ViewsKey = (Method, u32, bool, u32, u32);
+/// What the views of a shot depend on: (method, resolution, exact delta rule, side).
+type ViewsKey = (Method, u32, bool, u32);
 
 thread_local! {
     /// The views of every key asked for so far on this host thread. Every GP of every shot asks
@@ -306,33 +301,23 @@ thread_local! {
     static VIEWS: RefCell<BTreeMap<ViewsKey, Vec<View>>> = const { RefCell::new(BTreeMap::new()) };
 }
 
-/// The views of `opts` on a machine with `renderers` boards of `rc` (computed once per key and
-/// host thread, see `VIEWS`), or why its resolution cannot be used ([`check_resolution`]).
-pub(crate) fn views(
-    opts: &FfOptions,
-    renderers: u32,
-    rc: &RendererConfig,
-) -> Result<Vec<View>, ProgramError> {
-    check_resolution(opts.method, opts.resolution, renderers, rc)
+/// The views of `opts` on boards of `rc` (computed once per key and host thread, see `VIEWS`),
+/// or why its resolution cannot be used ([`check_resolution`]).
+pub(crate) fn views(opts: &FfOptions, rc: &RendererConfig) -> Result<Vec<View>, ProgramError> {
+    check_resolution(opts.method, opts.resolution, rc)
         .map_err(|e| ProgramError(format!("resolution {}: {e}", opts.resolution)))?;
     let side = rc.width.min(rc.height);
-    let key = (
-        opts.method,
-        opts.resolution,
-        opts.exact_delta,
-        renderers,
-        side,
-    );
+    let key = (opts.method, opts.resolution, opts.exact_delta, side);
     if let Some(v) = VIEWS.with(|m| m.borrow().get(&key).cloned()) {
         return Ok(v);
     }
-    let v = compute_views(opts, renderers, side)?;
+    let v = compute_views(opts, side)?;
     VIEWS.with(|m| m.borrow_mut().insert(key, v.clone()));
     Ok(v)
 }
 
 /// The views of a resolution that [`check_resolution`] accepts.
-fn compute_views(opts: &FfOptions, renderers: u32, side: u32) -> Result<Vec<View>, ProgramError> {
+fn compute_views(opts: &FfOptions, side: u32) -> Result<Vec<View>, ProgramError> {
     let n = opts.resolution;
     let mut out = Vec::new();
     match opts.method {
@@ -352,7 +337,6 @@ fn compute_views(opts: &FfOptions, renderers: u32, side: u32) -> Result<Vec<View
                     out.push(View {
                         shooter: 0,
                         tile: ty * tiles + tx,
-                        renderer: ty * tiles + tx,
                         kind: ViewKind::Disk { n },
                         origin: (x0, y0),
                         width: w,
@@ -374,7 +358,6 @@ fn compute_views(opts: &FfOptions, renderers: u32, side: u32) -> Result<Vec<View
                 out.push(View {
                     shooter: 0,
                     tile: i,
-                    renderer: i % renderers,
                     kind: ViewKind::Face { face, n },
                     origin: (0, face.row0(n)),
                     width: n,
@@ -387,12 +370,13 @@ fn compute_views(opts: &FfOptions, renderers: u32, side: u32) -> Result<Vec<View
     Ok(out)
 }
 
-/// The radiosity programs' Data message tags.
+/// The radiosity programs' Data message tags. A shot's signals carry their view (and board) in
+/// the tag's upper bits: [`Signal`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Tags {
-    /// GP 0 to the others: the round's boards are prepared, draw.
+    /// GP 0 to the others: a view's board is prepared, draw it.
     Go = 1,
-    /// A GP to GP 0: my drawing of the round has executed.
+    /// A GP to GP 0: my drawing of a view has executed.
     Done = 2,
     /// Partial form factors to their receivers' owners (or to GP 0).
     Partial = 10,
@@ -405,6 +389,71 @@ pub(crate) enum Tags {
 impl Tag for Tags {
     fn code(self) -> u64 {
         self as u64
+    }
+}
+
+/// A shot's signal between GPs: [`Tags::Go`] or [`Tags::Done`] for one view (its index among
+/// the shot's views) on one board, all in the Data message's tag (bits 0-7 the kind, 8-31 the
+/// view, 32-62 the board), so a signal is a header-only message.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Signal {
+    kind: Tags,
+    view: usize,
+    board: u32,
+}
+
+/// Views a shot can number in a [`Signal`] or a [`Reply`] tag.
+const MAX_VIEWS: usize = 1 << 24;
+/// Boards a [`Signal`] can name.
+const MAX_BOARDS: u32 = 1 << 31;
+
+impl Tag for Signal {
+    fn code(self) -> u64 {
+        self.kind as u64 | (self.view as u64) << 8 | u64::from(self.board) << 32
+    }
+}
+
+impl Signal {
+    fn decode(tag: u64) -> Option<Signal> {
+        let kind = match tag & 0xFF {
+            1 => Tags::Go,
+            2 => Tags::Done,
+            _ => return None,
+        };
+        Some(Signal {
+            kind,
+            view: ((tag >> 8) & 0xFF_FFFF) as usize,
+            board: ((tag >> 32) & 0x7FFF_FFFF) as u32,
+        })
+    }
+}
+
+/// Why a Renderer reads back to a GP during a shot, in the readback's tag (bits 24-31; bits 0-23
+/// the view).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Reply {
+    /// GP 0's completion probe after a view's set-up: the board is ready for drawing.
+    Ready = 1,
+    /// A GP's completion probe after its drawing of a view: its commands have executed.
+    Drawn = 2,
+    /// A band of a view's IDs.
+    Band = 3,
+}
+
+impl Reply {
+    /// The readback tag of this reply about view `view`.
+    pub(crate) fn tag(self, view: usize) -> u32 {
+        (self as u32) << 24 | (view as u32 & 0xFF_FFFF)
+    }
+
+    fn decode(tag: u32) -> Option<(Reply, usize)> {
+        let kind = match tag >> 24 {
+            1 => Reply::Ready,
+            2 => Reply::Drawn,
+            3 => Reply::Band,
+            _ => return None,
+        };
+        Some((kind, (tag & 0xFF_FFFF) as usize))
     }
 }
 
@@ -445,7 +494,7 @@ pub struct ItemBuffer {
 /// for pictures, which no GP reads).
 pub type ItemBuffers = std::rc::Rc<std::cell::RefCell<Vec<ItemBuffer>>>;
 
-/// What every phase of a shot needs of the machine.
+/// What every step of a shot needs of the machine.
 struct Setting {
     fields: ViewFields,
     format: FixedFormat,
@@ -453,14 +502,16 @@ struct Setting {
     gps: u32,
 }
 
-/// Compute the form factors of one or more shooters at once (their views spread over the
-/// Renderers, one view per Renderer per round): every GP runs this with the receivers it owns;
-/// each returns, per shooter, the partial sums of its band of every view.
+/// Compute the form factors of one or more shooters at once: every GP runs this with the
+/// receivers it owns; each returns, per shooter, the partial sums of its band of every view.
 ///
-/// Each round has four phases: GP 0 prepares the round's boards (`prepare_boards`); every GP
-/// draws its receivers (`draw_receivers`); every GP probes the boards it drew on and GP 0, once
-/// all are done, orders the ID readbacks (`finish_drawing`); every GP sums its band of each view
-/// (`accumulate`).
+/// The views of all the shooters are scheduled as a list on the Renderers, without rounds: GP 0
+/// prepares a view on each board ([`Coordinator`]); when a board's set-up has executed GP 0 tells
+/// every GP to draw the view there; each GP draws its receivers, probes the board and, once its
+/// commands have executed, reports to GP 0; when every GP has, GP 0 orders the view's ID
+/// readback in row bands (one per GP) and at once prepares the next view on the same board,
+/// whose commands the board runs after the readback. Every GP handles these events in the order
+/// they reach it ([`Event`]) until it has drawn every view and summed its band of each.
 pub async fn shoot(
     gp: &Gp,
     opts: &FfOptions,
@@ -471,7 +522,7 @@ pub async fn shoot(
     items: Option<&ItemBuffers>,
 ) -> Result<Vec<Partial>, ProgramError> {
     let rc = gp.renderer_config();
-    let setting = Setting {
+    let s = Setting {
         fields: ViewFields::allocate(rc.pixel_memory_bits)
             .map_err(|e| ProgramError(e.to_string()))?,
         format: rc.qee.coefficient_format,
@@ -479,56 +530,423 @@ pub async fn shoot(
         gps: gp.gp_count(),
     };
     let renderers = gp.renderer_count();
-    let rounds = rounds(shot_views(opts, shooters.len(), renderers, rc)?, renderers);
+    if renderers >= MAX_BOARDS {
+        return Err(ProgramError(format!(
+            "{renderers} Renderers: a shot's signals name at most {MAX_BOARDS}"
+        )));
+    }
+    let views = shot_views(opts, shooters.len(), rc)?;
+    gp.phase("transform");
     let local = transform_receivers(gp, shooters, receivers).await;
-    let mut partial = vec![Partial::new(); shooters.len()];
-    for round in &rounds {
+    let g = gp.index();
+    let mut left = Left::new(&views, s.gps, g);
+    // Sums per view, added up in view order at the end, so the result does not depend on the
+    // order the schedule delivers the bands in (floating-point sums are not associative).
+    let mut by_view = vec![Partial::new(); views.len()];
+    let mut coordinator = (g == 0).then(|| Coordinator::new(views.len(), renderers, s.gps));
+    if let Some(c) = coordinator.as_mut() {
         gp.phase("renderer setup");
-        prepare_boards(gp, &setting, round, opts, w_tables).await;
-        gp.phase("gp setup and send");
-        let touched = draw_receivers(gp, &setting, round, receivers, &local, opts, culls).await;
-        gp.phase("renderer work");
-        finish_drawing(gp, &setting, round, &touched).await;
-        gp.phase("id readback");
-        accumulate(gp, &setting, round, &mut partial, items).await?;
+        c.start(gp, &s, &views, opts, w_tables).await;
+    }
+    let draw = Draw {
+        s: &s,
+        views: &views,
+        receivers,
+        local: &local,
+        opts,
+    };
+    // Views this GP is drawing, oldest first: it draws one message's worth of the first, then
+    // turns to the next, so that its commands reach every board it has work for instead of
+    // queueing behind one slow board.
+    let mut drawing: VecDeque<Drawing> = VecDeque::new();
+    while !left.finished() || coordinator.as_ref().is_some_and(|c| !c.finished()) {
+        // Take every event that has arrived; wait for one only with nothing to draw.
+        let m = if drawing.is_empty() {
+            gp.phase("waiting");
+            Some(gp.recv_where(is_shot_message).await)
+        } else if gp.has_message(is_shot_message) {
+            Some(gp.recv_where(is_shot_message).await)
+        } else {
+            None
+        };
+        let Some(m) = m else {
+            let pick = g as usize % drawing.len();
+            let mut d = drawing.remove(pick).expect("drawing is not empty");
+            match draw.step(gp, &mut d, culls).await {
+                Step::Sent => drawing.insert(pick, d),
+                Step::Probed => left.draws -= 1,
+                Step::Nothing => {
+                    left.draws -= 1;
+                    // Nothing of this GP's is in the view: nothing to wait for.
+                    let (view, board) = (d.view, d.batch.renderer());
+                    match coordinator.as_mut() {
+                        Some(c) => c.done(gp, &s, &views, view, opts, w_tables).await,
+                        None => {
+                            gp.signal(
+                                0,
+                                Signal {
+                                    kind: Tags::Done,
+                                    view,
+                                    board,
+                                },
+                            )
+                            .await
+                        }
+                    }
+                }
+            }
+            continue;
+        };
+        match Event::of(&m, views.len())? {
+            Event::Ready { view, board } => {
+                // GP 0 only: the board is prepared; everyone draws, GP 0 too.
+                gp.phase("renderer setup");
+                if coordinator.is_none() {
+                    return Err(unexpected(g, &m));
+                }
+                for other in 1..s.gps {
+                    let go = Signal {
+                        kind: Tags::Go,
+                        view,
+                        board,
+                    };
+                    gp.signal(other, go).await;
+                }
+                drawing.push_back(Drawing::new(view, board));
+            }
+            Event::Go { view, board } => drawing.push_back(Drawing::new(view, board)),
+            Event::Drawn { view } | Event::Done { view } => {
+                let c = coordinator.as_mut().ok_or_else(|| unexpected(g, &m))?;
+                c.done(gp, &s, &views, view, opts, w_tables).await;
+            }
+            Event::Band { view } => {
+                gp.phase("accumulate");
+                let count = accumulate(gp, &s, &views[view], &m, &mut by_view[view]).await?;
+                if let Some(items) = items {
+                    keep_item_buffer(items, &views[view], &m, &s);
+                }
+                left.band_received(view, count);
+            }
+        }
+    }
+    let mut partial = vec![Partial::new(); shooters.len()];
+    for (v, sums) in views.iter().zip(by_view) {
+        for (id, f) in sums {
+            *partial[v.shooter].entry(id).or_default() += f;
+        }
     }
     Ok(partial)
 }
 
-/// Every shooter's views, numbered across shooters so that consecutive views land on consecutive
-/// Renderers.
+/// A shot's messages: readbacks, and the [`Signal`]s.
+fn is_shot_message(m: &Message) -> bool {
+    match m.payload {
+        Payload::Pixels { .. } => true,
+        Payload::Data { tag, .. } => Signal::decode(tag).is_some(),
+        _ => false,
+    }
+}
+
+/// A shot message, decoded.
+enum Event {
+    /// (GP 0) View `view`'s set-up on `board` has executed.
+    Ready { view: usize, board: u32 },
+    /// Draw view `view` on `board`.
+    Go { view: usize, board: u32 },
+    /// (GP 0) A GP's drawing of `view` has executed: its completion probe.
+    Drawn { view: usize },
+    /// (GP 0) A GP that had nothing to draw in `view` says so.
+    Done { view: usize },
+    /// Part of this GP's band of `view`'s IDs.
+    Band { view: usize },
+}
+
+impl Event {
+    fn of(m: &Message, views: usize) -> Result<Event, ProgramError> {
+        let bad = || ProgramError(format!("a shot of {views} views cannot use {m:?}"));
+        let event = match (&m.payload, m.from) {
+            (Payload::Pixels { tag, .. }, Unit::Renderer(board)) => {
+                let (reply, view) = Reply::decode(*tag).ok_or_else(bad)?;
+                match reply {
+                    Reply::Ready => Event::Ready { view, board },
+                    Reply::Drawn => Event::Drawn { view },
+                    Reply::Band => Event::Band { view },
+                }
+            }
+            (Payload::Data { tag, .. }, Unit::Gp(_)) => {
+                let sig = Signal::decode(*tag).ok_or_else(bad)?;
+                match sig.kind {
+                    Tags::Go => Event::Go {
+                        view: sig.view,
+                        board: sig.board,
+                    },
+                    _ => Event::Done { view: sig.view },
+                }
+            }
+            _ => return Err(bad()),
+        };
+        match event {
+            Event::Ready { view, .. }
+            | Event::Go { view, .. }
+            | Event::Drawn { view }
+            | Event::Done { view }
+            | Event::Band { view }
+                if view < views =>
+            {
+                Ok(event)
+            }
+            _ => Err(bad()),
+        }
+    }
+}
+
+/// A message GP `g` has no use for: a program bug, reported rather than ignored.
+fn unexpected(g: u32, m: &Message) -> ProgramError {
+    ProgramError(format!("GP {g}: unexpected {m:?}"))
+}
+
+/// What one GP still has to do in a shot: views to draw, and the pixels of its band of each
+/// view.
+struct Left {
+    draws: usize,
+    /// Pixels of this GP's band still to come, per view.
+    band: Vec<u64>,
+    bands: usize,
+}
+
+impl Left {
+    fn new(views: &[View], gps: u32, g: u32) -> Left {
+        let band: Vec<u64> = views
+            .iter()
+            .map(|v| {
+                let (y0, y1) = band_rows(v.rows, gps, g);
+                u64::from(v.width) * u64::from(y1 - y0)
+            })
+            .collect();
+        Left {
+            draws: views.len(),
+            bands: band.iter().filter(|&&p| p > 0).count(),
+            band,
+        }
+    }
+
+    fn finished(&self) -> bool {
+        self.draws == 0 && self.bands == 0
+    }
+
+    fn band_received(&mut self, view: usize, pixels: u64) {
+        let b = &mut self.band[view];
+        *b = b.saturating_sub(pixels);
+        if *b == 0 {
+            self.bands -= 1;
+        }
+    }
+}
+
+/// What a GP needs to draw its receivers in a view.
+struct Draw<'a> {
+    s: &'a Setting,
+    views: &'a [View],
+    receivers: &'a [Receiver],
+    local: &'a [Vec<Vec<DVec3>>],
+    opts: &'a FfOptions,
+}
+
+/// One view a GP is drawing: where, and how far it has got.
+struct Drawing {
+    view: usize,
+    /// The next of this GP's receivers to draw.
+    next: usize,
+    batch: CommandBatch,
+}
+
+impl Drawing {
+    fn new(view: usize, board: u32) -> Drawing {
+        Drawing {
+            view,
+            next: 0,
+            batch: CommandBatch::new(board),
+        }
+    }
+}
+
+/// What one [`Draw::step`] did.
+enum Step {
+    /// Sent a message of commands; more receivers are left.
+    Sent,
+    /// Drew its last receivers and sent the completion probe (which answers GP 0).
+    Probed,
+    /// Every receiver was culled: nothing was sent.
+    Nothing,
+}
+
+impl Draw<'_> {
+    /// Draw this GP's receivers in `d`'s view until a message of commands (under the packet size)
+    /// has been sent or the receivers are exhausted; after the last, probe the board.
+    async fn step(&self, gp: &Gp, d: &mut Drawing, culls: &mut CullCounts) -> Step {
+        gp.phase("gp setup and send");
+        let v = &self.views[d.view];
+        let (s, opts) = (self.s, self.opts);
+        let local = &self.local[v.shooter];
+        while d.next < self.receivers.len() {
+            let (r, verts) = (&self.receivers[d.next], &local[d.next]);
+            d.next += 1;
+            let drawn = gp
+                .work(|cost| v.receiver_commands(verts, r.id, opts, (&s.fields, s.format), cost))
+                .await;
+            match drawn {
+                Ok(cmds) => {
+                    if d.batch.push(gp, cmds).await {
+                        return Step::Sent;
+                    }
+                }
+                Err(c) => culls.add(c),
+            }
+        }
+        let board = d.batch.renderer();
+        let batch = std::mem::replace(&mut d.batch, CommandBatch::new(board));
+        if !batch.finish(gp).await {
+            return Step::Nothing;
+        }
+        // The probe answers GP 0 directly: its arrival there says this GP's drawing is done.
+        let probe = completion_probe(&s.fields, 0, Reply::Drawn.tag(d.view));
+        gp.send_commands(board, vec![probe]).await;
+        Step::Probed
+    }
+}
+
+/// GP 0's list scheduler of a shot's views on the Renderers: each board holds one view at a time;
+/// a board whose view is read back takes the next view at once.
+struct Coordinator {
+    /// The next view to place.
+    next: usize,
+    /// GPs whose drawing of each view has executed.
+    done: Vec<u32>,
+    /// The board of each placed view.
+    board: Vec<Option<u32>>,
+    /// Views read back.
+    read: usize,
+    boards: u32,
+    gps: u32,
+}
+
+impl Coordinator {
+    fn new(views: usize, boards: u32, gps: u32) -> Coordinator {
+        Coordinator {
+            next: 0,
+            done: vec![0; views],
+            board: vec![None; views],
+            read: 0,
+            boards,
+            gps,
+        }
+    }
+
+    fn finished(&self) -> bool {
+        self.read == self.done.len()
+    }
+
+    /// Place the first views, one per board.
+    async fn start(
+        &mut self,
+        gp: &Gp,
+        s: &Setting,
+        views: &[View],
+        opts: &FfOptions,
+        w_tables: &mut WTables,
+    ) {
+        for board in 0..self.boards {
+            if self.next == views.len() {
+                break;
+            }
+            self.place(gp, s, views, board, opts, w_tables).await;
+        }
+    }
+
+    /// Prepare the next view on `board`: its set-up (and for stored-w depth the board's w table,
+    /// when it does not hold this view's yet), then a completion probe that says it is ready.
+    async fn place(
+        &mut self,
+        gp: &Gp,
+        s: &Setting,
+        views: &[View],
+        board: u32,
+        opts: &FfOptions,
+        w_tables: &mut WTables,
+    ) {
+        let view = self.next;
+        self.next += 1;
+        self.board[view] = Some(board);
+        let v = &views[view];
+        gp.send_commands(board, v.setup_commands(&s.fields, s.format))
+            .await;
+        if opts.depth == HemisphereDepth::StoredW
+            && matches!(v.kind, ViewKind::Disk { .. })
+            && w_tables.origins.insert(board, v.origin) != Some(v.origin)
+        {
+            write_w_table(gp, s, v, board, opts.resolution).await;
+        }
+        let probe = completion_probe(&s.fields, 0, Reply::Ready.tag(view));
+        gp.send_commands(board, vec![probe]).await;
+    }
+
+    /// One more GP's drawing of `view` has executed; once every GP's has, order the view's ID
+    /// readback in row bands, one per GP, and place the next view on its board.
+    async fn done(
+        &mut self,
+        gp: &Gp,
+        s: &Setting,
+        views: &[View],
+        view: usize,
+        opts: &FfOptions,
+        w_tables: &mut WTables,
+    ) {
+        self.done[view] += 1;
+        if self.done[view] < self.gps {
+            return;
+        }
+        gp.phase("renderer setup");
+        let Some(board) = self.board[view] else {
+            return;
+        };
+        let v = &views[view];
+        let bands: Vec<Command> = (0..s.gps)
+            .filter_map(|band| v.band_readback(&s.fields, band, s.gps, Reply::Band.tag(view)))
+            .collect();
+        let mut batch = CommandBatch::new(board);
+        for cmd in bands {
+            batch.push(gp, vec![cmd]).await;
+        }
+        batch.finish(gp).await;
+        self.read += 1;
+        if self.next < views.len() {
+            self.place(gp, s, views, board, opts, w_tables).await;
+        }
+    }
+}
+
+/// Every shooter's views, shooter by shooter.
 fn shot_views(
     opts: &FfOptions,
     shooters: usize,
-    renderers: u32,
     rc: &RendererConfig,
 ) -> Result<Vec<View>, ProgramError> {
-    let one = views(opts, renderers, rc)?;
-    let mut all = Vec::new();
-    for s in 0..shooters {
-        for v in &one {
-            let mut v = v.clone();
-            v.shooter = s;
-            v.renderer = (all.len() as u32) % renderers;
-            all.push(v);
-        }
+    let one = views(opts, rc)?;
+    if shooters.saturating_mul(one.len()) >= MAX_VIEWS {
+        return Err(ProgramError(format!(
+            "{shooters} shooters at once of {} views each: a shot numbers at most {MAX_VIEWS} \
+             views",
+            one.len()
+        )));
+    }
+    let mut all = Vec::with_capacity(shooters * one.len());
+    for shooter in 0..shooters {
+        all.extend(one.iter().map(|v| View {
+            shooter,
+            ..v.clone()
+        }));
     }
     Ok(all)
-}
-
-/// The views in rounds of at most one view per Renderer, in order.
-fn rounds(views: Vec<View>, renderers: u32) -> Vec<Vec<View>> {
-    let mut rounds: Vec<Vec<View>> = Vec::new();
-    for v in views {
-        match rounds
-            .iter_mut()
-            .find(|r| r.iter().all(|x| x.renderer != v.renderer))
-        {
-            Some(r) if r.len() < renderers as usize => r.push(v),
-            _ => rounds.push(vec![v]),
-        }
-    }
-    rounds
 }
 
 /// The receivers in each shooter's frame (one transform per vertex per shooter, charged).
@@ -558,42 +976,10 @@ async fn transform_receivers(
     local
 }
 
-/// Phase 1: GP 0 prepares the round's boards (view set-up, and for stored-w depth the w table
-/// once per board), waits for their completion probes and tells the others to draw; the others
-/// wait for that.
-async fn prepare_boards(
-    gp: &Gp,
-    s: &Setting,
-    round: &[View],
-    opts: &FfOptions,
-    w_tables: &mut WTables,
-) {
-    if gp.index() != 0 {
-        gp.recv_data(Tags::Go).await;
-        return;
-    }
-    for v in round {
-        let mut cmds = v.setup_commands(&s.fields, s.format);
-        cmds.push(completion_probe(&s.fields, 0));
-        gp.send_commands(v.renderer, cmds).await;
-        if opts.depth == HemisphereDepth::StoredW
-            && matches!(v.kind, ViewKind::Disk { .. })
-            && w_tables.origins.insert(v.renderer, v.origin) != Some(v.origin)
-        {
-            write_w_table(gp, s, v, opts.resolution).await;
-        }
-    }
-    for v in round {
-        gp.recv_pixels(v.renderer).await;
-    }
-    for other in 1..s.gps {
-        gp.signal(other, Tags::Go).await;
-    }
-}
-
-/// Stored-w depth: compute view `v`'s board's w table (one [`Op::WTableEntry`] per pixel), write
-/// it in messages of whole rows under the packet size, and wait until it is stored.
-async fn write_w_table(gp: &Gp, s: &Setting, v: &View, n: u32) {
+/// Stored-w depth: compute view `v`'s w table (one [`Op::WTableEntry`] per pixel) and write it to
+/// `board` in messages of whole rows under the packet size (the board stores it before it runs
+/// anything sent after).
+async fn write_w_table(gp: &Gp, s: &Setting, v: &View, board: u32, n: u32) {
     let table = gp
         .work(|cost| {
             cost.add(Op::WTableEntry, u64::from(v.width * v.rows));
@@ -620,125 +1006,58 @@ async fn write_w_table(gp: &Gp, s: &Setting, v: &View, n: u32) {
             },
             values: table[rows].to_vec(),
         };
-        gp.send_commands(v.renderer, vec![cmd]).await;
+        gp.send_commands(board, vec![cmd]).await;
         y += h;
     }
-    gp.send_commands(v.renderer, vec![completion_probe(&s.fields, 0)])
-        .await;
-    gp.recv_pixels(v.renderer).await;
 }
 
-/// Phase 2: this GP draws its receivers in every view of the round, in command messages under
-/// the packet size; the Renderers it drew on.
-async fn draw_receivers(
-    gp: &Gp,
-    s: &Setting,
-    round: &[View],
-    receivers: &[Receiver],
-    local: &[Vec<Vec<DVec3>>],
-    opts: &FfOptions,
-    culls: &mut CullCounts,
-) -> Vec<u32> {
-    let mut touched = Vec::new();
-    for v in round {
-        let mut batch = CommandBatch::new(v.renderer);
-        for (r, verts) in receivers.iter().zip(&local[v.shooter]) {
-            let drawn = gp
-                .work(|cost| v.receiver_commands(verts, r.id, opts, (&s.fields, s.format), cost))
-                .await;
-            let cmds = match drawn {
-                Ok(c) => c,
-                Err(c) => {
-                    culls.add(c);
-                    continue;
-                }
-            };
-            batch.push(gp, cmds).await;
-        }
-        if batch.finish(gp).await {
-            touched.push(v.renderer);
-        }
-    }
-    touched
-}
-
-/// Phase 3: this GP probes every board it drew on and waits until its commands there have
-/// executed, then reports to GP 0; GP 0, once every GP has, orders the ID readbacks: each view
-/// in row bands, one band per GP.
-async fn finish_drawing(gp: &Gp, s: &Setting, round: &[View], touched: &[u32]) {
-    let g = gp.index();
-    for &r in touched {
-        gp.send_commands(r, vec![completion_probe(&s.fields, g)])
-            .await;
-    }
-    for &r in touched {
-        gp.recv_pixels(r).await;
-    }
-    if g != 0 {
-        gp.signal(0, Tags::Done).await;
-        return;
-    }
-    for _ in 1..s.gps {
-        gp.recv_data(Tags::Done).await;
-    }
-    for v in round {
-        for band in 0..s.gps {
-            if let Some(cmd) = v.band_readback(&s.fields, band, s.gps) {
-                gp.send_commands(v.renderer, vec![cmd]).await;
-            }
-        }
-    }
-}
-
-/// Phase 4: receive this GP's band of every view and sum the delta form factors per ID.
+/// Add the delta form factors of one readback message of this GP's band of view `v` to the
+/// view's sums per ID; the pixels it held.
 async fn accumulate(
     gp: &Gp,
     s: &Setting,
-    round: &[View],
-    partial: &mut [Partial],
-    items: Option<&ItemBuffers>,
-) -> Result<(), ProgramError> {
-    let g = gp.index();
-    for v in round {
-        let (y0, y1) = band_rows(v.rows, s.gps, g);
-        let mut remaining = (v.width * (y1 - y0)) as u64;
-        while remaining > 0 {
-            let m = gp.recv_pixels(v.renderer).await;
-            let Payload::Pixels {
-                rect, bits, words, ..
-            } = m.payload
-            else {
-                return Err(ProgramError(format!(
-                    "GP {g}: expected ID pixels, got {m:?}"
-                )));
-            };
-            let count = (rect.width * rect.height) as usize;
-            let ids = readback::unpack(&words, bits, s.word_bits, count);
-            gp.phase("accumulate");
-            gp.work(|cost| {
-                cost.add(Op::FfAccumulatePerPixel, count as u64);
-                for (i, &id) in ids.iter().enumerate() {
-                    if id == 0 {
-                        continue;
-                    }
-                    let (x, t) = (i as u32 % rect.width, rect.y + i as u32 / rect.width);
-                    *partial[v.shooter].entry(id as u16).or_default() +=
-                        v.delta[(t * v.width + x) as usize];
-                }
-            })
-            .await;
-            if let Some(items) = items {
-                keep_item_buffer(items, v, rect.y, &ids);
+    v: &View,
+    m: &Message,
+    sums: &mut Partial,
+) -> Result<u64, ProgramError> {
+    let Payload::Pixels {
+        rect, bits, words, ..
+    } = &m.payload
+    else {
+        return Err(unexpected(gp.index(), m));
+    };
+    let count = (rect.width * rect.height) as usize;
+    let ids = readback::unpack(words, *bits, s.word_bits, count);
+    gp.work(|cost| {
+        cost.add(Op::FfAccumulatePerPixel, count as u64);
+        for (i, &id) in ids.iter().enumerate() {
+            if id == 0 {
+                continue;
             }
-            remaining -= count as u64;
-            gp.phase("id readback");
+            let (x, t) = (i as u32 % rect.width, rect.y + i as u32 / rect.width);
+            *sums.entry(id as u16).or_default() += v.delta[(t * v.width + x) as usize];
         }
-    }
-    Ok(())
+    })
+    .await;
+    Ok(count as u64)
 }
 
-/// Copy a band of IDs into the item buffer of view `v` (for pictures, outside simulated time).
-fn keep_item_buffer(items: &ItemBuffers, v: &View, y: u32, ids: &[u64]) {
+/// Copy a readback of a band of IDs into the item buffer of view `v` (for pictures, outside
+/// simulated time).
+fn keep_item_buffer(items: &ItemBuffers, v: &View, m: &Message, s: &Setting) {
+    let Payload::Pixels {
+        rect, bits, words, ..
+    } = &m.payload
+    else {
+        return;
+    };
+    let ids = readback::unpack(
+        words,
+        *bits,
+        s.word_bits,
+        (rect.width * rect.height) as usize,
+    );
+    let y = rect.y;
     let mut all = items.borrow_mut();
     let name = view_name(v);
     let k = match all.iter().position(|b| b.view == name) {
@@ -774,10 +1093,10 @@ fn view_name(v: &View) -> String {
     format!("shooter{}-{view}", v.shooter)
 }
 
-/// A completion probe: a one-pixel readback of the ID field to GP `g`. It executes after every
-/// earlier command on the board, so its arrival tells `g` that they are done. (Not
-/// `Command::Fence`, which waits for the board's backing-store transfers.)
-pub(crate) fn completion_probe(f: &ViewFields, g: u32) -> Command {
+/// A completion probe: a one-pixel readback of the ID field to GP `g`, with `tag` (a [`Reply`]).
+/// It executes after every earlier command on the board, so its arrival tells `g` that they are
+/// done. (Not `Command::Fence`, which waits for the board's backing-store transfers.)
+pub(crate) fn completion_probe(f: &ViewFields, g: u32, tag: u32) -> Command {
     Command::Readback {
         field: f.id,
         rect: Rect {
@@ -787,7 +1106,7 @@ pub(crate) fn completion_probe(f: &ViewFields, g: u32) -> Command {
             height: 1,
         },
         dest: Unit::Gp(g).encode(),
-        tag: 0,
+        tag,
     }
 }
 
@@ -824,15 +1143,10 @@ mod tests {
     #[test]
     fn the_largest_resolutions_of_the_shipped_machines() {
         let rc = seed();
-        // 4 boards of 128: a 2 x 2 disk; a face fits one board.
-        assert_eq!(max_resolution(Method::Hemisphere, 4, &rc), 256);
-        assert_eq!(max_resolution(Method::Hemicube, 4, &rc), 128);
-        // 16 boards (the paper's machine): 4 x 4 tiles; 15 boards: still 3 x 3.
-        assert_eq!(max_resolution(Method::Hemisphere, 16, &rc), 512);
-        assert_eq!(max_resolution(Method::Hemisphere, 15, &rc), 384);
-        assert_eq!(max_resolution(Method::Hemisphere, 1, &rc), 128);
-        // Addresses: 2^12 = 4096 hold 32 tiles of 128, whatever the boards.
-        assert_eq!(max_resolution(Method::Hemisphere, u32::MAX, &rc), 4096);
+        // Addresses: 2^12 = 4096 hold 32 tiles of 128, whatever the boards (tiles are views
+        // of their own, drawn in turn on a machine with fewer boards); a face fits one board.
+        assert_eq!(max_resolution(Method::Hemisphere, &rc), 4096);
+        assert_eq!(max_resolution(Method::Hemicube, &rc), 128);
     }
 
     #[test]
@@ -841,40 +1155,40 @@ mod tests {
         // 2^8 = 256 addresses: two tiles of 128 (origins 0 and 128), a side face's origin row
         // n / 2 at most 128.
         rc.qee.coordinate_bits = 8;
-        assert_eq!(max_resolution(Method::Hemisphere, 100, &rc), 256);
-        assert_eq!(max_resolution(Method::Hemicube, 100, &rc), 128);
+        assert_eq!(max_resolution(Method::Hemisphere, &rc), 256);
+        assert_eq!(max_resolution(Method::Hemicube, &rc), 128);
         // 2^7 = 128: one tile; no room above the board for a side face's origin.
         rc.qee.coordinate_bits = 7;
-        assert_eq!(max_resolution(Method::Hemisphere, 100, &rc), 128);
-        assert_eq!(max_resolution(Method::Hemicube, 100, &rc), 0);
-        let e = check_resolution(Method::Hemicube, 128, 4, &rc).unwrap_err();
+        assert_eq!(max_resolution(Method::Hemisphere, &rc), 128);
+        assert_eq!(max_resolution(Method::Hemicube, &rc), 0);
+        let e = check_resolution(Method::Hemicube, 128, &rc).unwrap_err();
         assert!(e.contains("at any resolution"), "{e}");
         // A 128 x 64 board under 2^7 leaves 64 rows above it for a side face's origin (n up to
         // 129), but a face must fit the board's shorter side, 64.
         rc.height = 64;
-        assert_eq!(max_resolution(Method::Hemicube, 1, &rc), 64);
+        assert_eq!(max_resolution(Method::Hemicube, &rc), 64);
     }
 
     #[test]
     fn check_resolution_names_the_limit() {
         let rc = seed();
-        assert!(check_resolution(Method::Hemisphere, 1, 4, &rc).is_ok());
-        assert!(check_resolution(Method::Hemisphere, 255, 4, &rc).is_ok());
-        assert!(check_resolution(Method::Hemicube, 2, 4, &rc).is_ok());
-        assert!(check_resolution(Method::Hemicube, 128, 4, &rc).is_ok());
-        let e = check_resolution(Method::Hemisphere, 0, 4, &rc).unwrap_err();
-        assert!(e.contains("takes 1 to 256 pixels across"), "{e}");
-        let e = check_resolution(Method::Hemisphere, 257, 4, &rc).unwrap_err();
+        assert!(check_resolution(Method::Hemisphere, 1, &rc).is_ok());
+        assert!(check_resolution(Method::Hemisphere, 4096, &rc).is_ok());
+        assert!(check_resolution(Method::Hemicube, 2, &rc).is_ok());
+        assert!(check_resolution(Method::Hemicube, 128, &rc).is_ok());
+        let e = check_resolution(Method::Hemisphere, 0, &rc).unwrap_err();
+        assert!(e.contains("takes 1 to 4096 pixels across"), "{e}");
+        let e = check_resolution(Method::Hemisphere, 4097, &rc).unwrap_err();
         assert!(
-            e.contains("1 to 256") && e.contains("4 Renderers of 128 x 128"),
+            e.contains("1 to 4096") && e.contains("Renderers of 128 x 128"),
             "{e}"
         );
-        let e = check_resolution(Method::Hemicube, 129, 4, &rc).unwrap_err();
+        let e = check_resolution(Method::Hemicube, 129, &rc).unwrap_err();
         assert!(e.contains("from 2 to 128"), "{e}");
-        let e = check_resolution(Method::Hemicube, 127, 4, &rc).unwrap_err();
+        let e = check_resolution(Method::Hemicube, 127, &rc).unwrap_err();
         assert!(e.contains("even") && e.contains("upper half"), "{e}");
         // No overflow at the type's end.
-        assert!(check_resolution(Method::Hemisphere, u32::MAX, u32::MAX, &rc).is_err());
+        assert!(check_resolution(Method::Hemisphere, u32::MAX, &rc).is_err());
     }
 
     /// An odd hemicube would leave out each side face's top row: the rows a side face takes are
@@ -894,16 +1208,11 @@ mod tests {
             resolution,
             ..FfOptions::default()
         };
-        let e = views(&opts(Method::Hemisphere, 0), 4, &rc).unwrap_err();
+        let e = views(&opts(Method::Hemisphere, 0), &rc).unwrap_err();
         assert!(e.0.starts_with("resolution 0: the hemisphere"), "{}", e.0);
-        assert!(views(&opts(Method::Hemicube, 127), 4, &rc).is_err());
-        assert_eq!(
-            views(&opts(Method::Hemicube, 128), 4, &rc).unwrap().len(),
-            5
-        );
-        assert_eq!(
-            views(&opts(Method::Hemisphere, 256), 4, &rc).unwrap().len(),
-            4
-        );
+        assert!(views(&opts(Method::Hemicube, 127), &rc).is_err());
+        assert_eq!(views(&opts(Method::Hemicube, 128), &rc).unwrap().len(), 5);
+        assert_eq!(views(&opts(Method::Hemisphere, 256), &rc).unwrap().len(), 4);
+        assert_eq!(views(&opts(Method::Hemisphere, 384), &rc).unwrap().len(), 9);
     }
 }

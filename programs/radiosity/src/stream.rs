@@ -20,7 +20,7 @@ use pxpl5_renderer::{Board, Command, CommandError};
 use pxpl5_sim::Cycles;
 
 use crate::mesh::{MeshError, Patch, mesh};
-use crate::shot::{FfOptions, Method, completion_probe, views};
+use crate::shot::{FfOptions, Method, Reply, completion_probe, views};
 use crate::views::{ShooterFrame, ViewFields};
 use crate::{scenes, solver};
 
@@ -88,9 +88,9 @@ pub fn cornell_stream(
             .map(|p| p.vertices.iter().map(|&v| frame.local(v)).collect())
             .collect();
         // Every view of the shot on one board: as many Renderers as views.
-        for v in views(opts, u32::MAX, rc)? {
+        for (k, v) in views(opts, rc)?.into_iter().enumerate() {
             commands.extend(v.setup_commands(&fields, format));
-            commands.push(completion_probe(&fields, 0));
+            commands.push(completion_probe(&fields, 0, Reply::Ready.tag(k)));
             for (j, verts) in local.iter().enumerate() {
                 let id = (j + 1) as u16;
                 match v.receiver_commands(verts, id, opts, (&fields, format), &mut Cost::default())
@@ -99,8 +99,10 @@ pub fn cornell_stream(
                     Err(_) => culled += 1,
                 }
             }
-            commands.extend((0..gps).map(|g| completion_probe(&fields, g)));
-            commands.extend((0..gps).filter_map(|g| v.band_readback(&fields, g, gps)));
+            commands.extend((0..gps).map(|g| completion_probe(&fields, g, Reply::Drawn.tag(k))));
+            commands.extend(
+                (0..gps).filter_map(|g| v.band_readback(&fields, g, gps, Reply::Band.tag(k))),
+            );
         }
     }
     Ok(Stream {
