@@ -74,17 +74,21 @@ impl Record for Candidate {
     }
 }
 
-/// Sum every GP's partial form factors (of shooter 0) on GP 0 (returned there; empty elsewhere).
+/// Sum every GP's partial form factors (of shooter 0) on GP 0 (returned there; empty elsewhere),
+/// in an order independent of arrival ([`sum_in_order`]).
 async fn gather_on_gp0(gp: &Gp, partial: Partial) -> Partial {
     if gp.index() == 0 {
-        let mut total = partial;
-        for r in gp
+        let mut parts: BTreeMap<u16, Vec<f64>> = BTreeMap::new();
+        let records = gp
             .recv_records::<ReceiverFactor>(Tags::Partial, gp.gp_count() - 1)
-            .await
+            .await;
+        for (id, f) in partial
+            .into_iter()
+            .chain(records.into_iter().map(|r| (r.id, r.f)))
         {
-            *total.entry(r.id).or_default() += r.f;
+            parts.entry(id).or_default().push(f);
         }
-        total
+        sum_in_order(parts)
     } else {
         let records: Vec<ReceiverFactor> = partial
             .into_iter()
@@ -471,6 +475,10 @@ async fn select(
 
 /// Send every partial form factor to its receiver's owner and gather those of this GP's
 /// receivers: (shooter of the batch, receiving patch) -> F, summed over the GPs' bands.
+///
+/// The partial sums of one receiver are added in ascending order of value, not in the order they
+/// arrive: arrival order is the schedule's, and floating-point addition is not associative, so
+/// the solution would otherwise change (in its last bits) with any change of timing.
 async fn exchange(gp: &Gp, partials: Vec<Partial>) -> BTreeMap<(usize, usize), f64> {
     let (g, gps) = (gp.index() as usize, gp.gp_count() as usize);
     let mut by_owner: Vec<Vec<ReceiverFactor>> = vec![Vec::new(); gps];
@@ -479,9 +487,12 @@ async fn exchange(gp: &Gp, partials: Vec<Partial>) -> BTreeMap<(usize, usize), f
             by_owner[(id as usize - 1) % gps].push(ReceiverFactor { shooter, id, f });
         }
     }
-    let mut mine: BTreeMap<(usize, usize), f64> = BTreeMap::new();
+    let mut parts: BTreeMap<(usize, usize), Vec<f64>> = BTreeMap::new();
     let mut add = |r: ReceiverFactor| {
-        *mine.entry((r.shooter, r.id as usize - 1)).or_default() += r.f;
+        parts
+            .entry((r.shooter, r.id as usize - 1))
+            .or_default()
+            .push(r.f);
     };
     for (owner, records) in by_owner.into_iter().enumerate() {
         if owner == g {
@@ -496,7 +507,19 @@ async fn exchange(gp: &Gp, partials: Vec<Partial>) -> BTreeMap<(usize, usize), f
     {
         add(r);
     }
-    mine
+    sum_in_order(parts)
+}
+
+/// Each key's parts summed in ascending order of value: a sum that does not depend on the order
+/// the parts arrived in (see [`exchange`]).
+fn sum_in_order<K: Ord>(parts: BTreeMap<K, Vec<f64>>) -> BTreeMap<K, f64> {
+    parts
+        .into_iter()
+        .map(|(key, mut fs)| {
+            fs.sort_by(f64::total_cmp);
+            (key, fs.into_iter().sum())
+        })
+        .collect()
 }
 
 /// The radiosity update of this GP's receivers from the shot's form factors (reciprocity
