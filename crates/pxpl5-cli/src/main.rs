@@ -31,9 +31,9 @@ use crate::output::errln;
 /// A cycle-level simulator of Pixel-Planes 5 (UNC, 1989): Graphics Processors on a token ring,
 /// and 128 x 128 bit-serial SIMD Renderers with a quadratic expression evaluator.
 ///
-/// With no subcommand, runs `pxpl5 radiosity`: the Cornell box with hemisphere and hemicube form
-/// factors on the embedded seed machine (TR89-002), beside the seed's estimate; writes
-/// out/radiosity/.
+/// With no subcommand, runs `pxpl5 radiosity`: the empty Cornell box with hemisphere and hemicube
+/// form factors on the embedded seed machine (TR89-002), each until within 1 % of the exact
+/// solution, beside the seed's estimate; writes out/radiosity/.
 #[derive(Parser)]
 #[command(name = "pxpl5", version, propagate_version = true, after_long_help = EXIT_CODES)]
 struct Cli {
@@ -67,9 +67,10 @@ enum Command {
     /// Validate and print machine configs (RON files in machine-configs/).
     #[command(subcommand)]
     Config(ConfigCommand),
-    /// Progressive radiosity with hemisphere and/or hemicube form factors on the machine: the
-    /// measured time per method and phase beside the seed's estimate, radiosity.png, per-patch
-    /// radiosity CSV.
+    /// Progressive radiosity with hemisphere and/or hemicube form factors on the machine, both
+    /// on the same resources: time per shot and to a target accuracy against the exact
+    /// reference, form-factor error, work per shot, beside the seed's estimate; per method a
+    /// picture, per-patch radiosity and the convergence curve.
     Radiosity(radiosity::RadiosityArgs),
     /// The form factor from a point to a polygon: exact, or measured on the machine with its
     /// cycles.

@@ -14,6 +14,9 @@ use pxpl5_geom::DVec3;
 use pxpl5_geom::convex::Corner;
 use pxpl5_geom::polygon::{self, Problem};
 use pxpl5_machine::{RunOptions, RunStats};
+use std::rc::Rc;
+
+use pxpl5_radiosity::accuracy::Reference;
 use pxpl5_radiosity::comparison::{Comparison, SEED_RATIO};
 use pxpl5_radiosity::experiment::{self, MethodRun, Settings};
 use pxpl5_radiosity::mesh::{Patch, mesh};
@@ -33,20 +36,27 @@ pub struct RadiosityArgs {
     /// Machine config (RON); default: the embedded seed machine.
     #[arg(long)]
     pub config: Option<PathBuf>,
-    /// Radiosity scene (RON); default: the Cornell box.
+    /// Radiosity scene (RON); default: the Cornell box without its blocks (cornell-empty.ron),
+    /// which has an exact reference solution, so the run's accuracy is measured.
     #[arg(long)]
     pub scene: Option<PathBuf>,
     /// Form-factor method.
     #[arg(long, value_enum, default_value_t = Methods::Both)]
     pub method: Methods,
-    /// Shots (shooting patches, the seed's N).
-    #[arg(long, default_value_t = 6)]
-    pub shots: usize,
-    /// Stop early when max unshot power / emitted power falls below this.
-    #[arg(long, default_value_t = 0.001)]
+    /// Most shots to take (shooting patches, the seed's N). Default: for a scene with a
+    /// reference, 10 per patch (a cap: 1 % takes about 3 per patch); otherwise 6.
+    #[arg(long)]
+    pub shots: Option<usize>,
+    /// Stop once every surface's mean radiosity is within this fraction of the reference solution
+    /// (0.01: 1 %; 0: never). Needs a scene without occluders (the reference is the direct solve
+    /// with exact form factors); default 0.01 for such a scene.
+    #[arg(long)]
+    pub until_error: Option<f64>,
+    /// Stop early when max unshot power / emitted power falls below this (0: never).
+    #[arg(long, default_value_t = 0.0)]
     pub threshold: f64,
     /// Patch size in scene units (the Cornell box is in millimetres).
-    #[arg(long, default_value_t = 90.0)]
+    #[arg(long, default_value_t = 120.0)]
     pub patch_size: f64,
     /// Pixels across the hemisphere's disk and the hemicube's top face.
     #[arg(long, default_value_t = 128)]
@@ -68,10 +78,11 @@ pub struct RadiosityArgs {
     /// Seed of the per-shot turns (the same seed gives the same run).
     #[arg(long, default_value_t = 1)]
     pub rotation_seed: u64,
-    /// Shoot this many patches at once, their views spread over the Renderers (1: classic
-    /// progressive refinement).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
-    pub shooters_at_once: u32,
+    /// Shoot this many patches at once, their views scheduled together on the Renderers (1:
+    /// classic progressive refinement). Default: the number of Renderers, for both methods, so
+    /// each can keep every board busy.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub shooters_at_once: Option<u32>,
     /// Hemisphere depth: taylor (the seed's quadratic approximation) or stored-w (w per pixel,
     /// exact, slower).
     #[arg(long, value_enum, default_value_t = DepthArg::Taylor)]
@@ -111,8 +122,8 @@ impl RadiosityArgs {
             .expect("the defaults parse")
     }
 
-    /// The library's settings for one method's run.
-    fn settings(&self, method: Method) -> Settings {
+    /// The library's settings for one method's run on `plan`.
+    fn settings(&self, method: Method, plan: &Plan) -> Settings {
         Settings {
             ff: FfOptions {
                 method,
@@ -123,10 +134,12 @@ impl RadiosityArgs {
                 depth: self.depth.into(),
                 rotation: (!self.no_rotation).then_some(self.rotation_seed),
             },
-            shots: self.shots,
+            shots: plan.shots,
             threshold: self.threshold,
-            shooters_at_once: self.shooters_at_once as usize,
+            shooters_at_once: plan.shooters_at_once,
             item_shots: self.item_buffers.clone(),
+            reference: plan.reference.clone(),
+            target_error: plan.until_error,
             run: RunOptions {
                 fidelity: self.fidelity.into(),
                 ..Settings::default().run
@@ -135,21 +148,85 @@ impl RadiosityArgs {
     }
 }
 
+/// What a run's defaults resolve to on its machine and scene.
+struct Plan {
+    shots: usize,
+    shooters_at_once: usize,
+    reference: Option<Rc<Reference>>,
+    until_error: Option<f64>,
+}
+
+impl Plan {
+    /// The plan of `args` for `patches` of `scene` on `cfg`; a `--until-error` the scene cannot
+    /// honour (it has occluders, so no reference) is an error.
+    fn new(
+        args: &RadiosityArgs,
+        cfg: &pxpl5_config::MachineConfig,
+        scene: &RadiosityScene,
+        patches: &[Patch],
+    ) -> Result<Plan, UserError> {
+        let until_error = match args.until_error {
+            Some(e) if !(0.0..1.0).contains(&e) => {
+                return Err(UserError(format!(
+                    "--until-error {e}: must be a fraction from 0 (never) to below 1 (0.01 is 1 %)"
+                )));
+            }
+            Some(e) => (e > 0.0).then_some(e),
+            None => Some(DEFAULT_UNTIL_ERROR),
+        };
+        let reference = Reference::new(scene, patches).map(Rc::new);
+        let until_error = match (until_error, &reference) {
+            (Some(_), None) if args.until_error.is_some() => {
+                return Err(UserError(format!(
+                    "--until-error: scene {} has surfaces that can hide others (it is not the \
+                     inside of a convex shell), so it has no exact reference solution to \
+                     measure the error against",
+                    scene.name
+                )));
+            }
+            (_, None) => None,
+            (e, Some(_)) => e,
+        };
+        let shots = args.shots.unwrap_or(match &reference {
+            Some(_) => SHOTS_PER_PATCH * patches.len(),
+            None => SHOTS_WITHOUT_REFERENCE,
+        });
+        Ok(Plan {
+            shots,
+            shooters_at_once: args
+                .shooters_at_once
+                .map_or(cfg.renderer.count as usize, |k| k as usize),
+            reference,
+            until_error,
+        })
+    }
+}
+
+/// `--until-error`'s default for a scene with a reference: 1 %.
+const DEFAULT_UNTIL_ERROR: f64 = 0.01;
+/// `--shots`' default cap per patch for a scene with a reference: progressive refinement of the
+/// Cornell box reaches 1 % in about 3 shots per patch (with exact form factors: 450 shots for
+/// 141 patches, 1,140 for 367), so 10 leaves room for a machine method's slower convergence.
+const SHOTS_PER_PATCH: usize = 10;
+/// `--shots`' default for a scene without a reference: a few shots, enough to time them.
+const SHOTS_WITHOUT_REFERENCE: usize = 6;
+
 /// Run `method`; returns the run and its host seconds. Writes nothing.
 fn run_method(
     cfg: &pxpl5_config::MachineConfig,
     patches: &[Patch],
     args: &RadiosityArgs,
+    plan: &Plan,
     method: Method,
 ) -> Result<(MethodRun, f64), UserError> {
     tracing::info!(
         method = %method.name(),
         patches = patches.len(),
-        max_shots = args.shots,
+        max_shots = plan.shots,
         "form-factor method starts"
     );
     let recorder = args.traces.recorder()?;
-    let settings = args.settings(method);
+    let settings = args.settings(method, plan);
     timed(
         "radiosity",
         settings.run.fidelity,
@@ -158,38 +235,51 @@ fn run_method(
     )
 }
 
-/// The files of the output directory whose names are known before the run.
-const FILES: [&str; 5] = [
-    "comparison.csv",
-    "comparison.json",
-    "patches.csv",
-    "config.ron",
-    "radiosity.png",
-];
+/// The files of the output directory written once per run.
+const FILES: [&str; 3] = ["comparison.csv", "comparison.json", "config.ron"];
 
-/// Runs every method, renders the picture, and only then writes every output, all or nothing
+/// The files written per method: `patches-METHOD.csv` (per-patch radiosity), with a reference
+/// `convergence-METHOD.csv` (error batch by batch), and with a camera `radiosity-METHOD.png`.
+fn method_files(method: Method, reference: bool, camera: bool) -> Vec<String> {
+    let m = method.name();
+    let mut names = vec![format!("patches-{m}.csv")];
+    if reference {
+        names.push(format!("convergence-{m}.csv"));
+    }
+    if camera {
+        names.push(format!("radiosity-{m}.png"));
+    }
+    names
+}
+
+/// Runs every method, renders the pictures, and only then writes every output, all or nothing
 /// (`output::write_all`), and prints the report: a failure anywhere leaves the output directory
 /// as it was. Every output whose name is known is checked before the first run.
 pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
     let cfg = config_cmd::load(args.config.as_deref())?;
     let scene: RadiosityScene = match &args.scene {
         Some(p) => pxpl5_radiosity::scene::load_radiosity_scene(p).map_err(config_cmd::report)?,
-        None => pxpl5_radiosity::scenes::cornell_box(),
+        None => pxpl5_radiosity::scenes::cornell_empty(),
     };
     let patches = mesh(&scene, args.patch_size).map_err(|e| UserError(e.to_string()))?;
+    let plan = Plan::new(args, &cfg, &scene, &patches)?;
+    let methods = args.method.methods();
 
     // Check every destination before the first run.
     output::check_dir("--out", &args.out)?;
-    let names = match scene.camera {
-        Some(_) => &FILES[..],
-        None => &FILES[..4],
-    };
+    let mut names: Vec<String> = FILES.iter().map(|f| f.to_string()).collect();
+    for &m in &methods {
+        names.extend(method_files(
+            m,
+            plan.reference.is_some(),
+            scene.camera.is_some(),
+        ));
+    }
     let files = names
         .iter()
         .map(|name| output::dest("--out", &args.out.join(name), false))
         .collect::<Result<Vec<_>, _>>()?;
     args.traces.recorder()?;
-    let methods = args.method.methods();
     let several = methods.len() > 1;
     let traces = methods
         .iter()
@@ -201,49 +291,59 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
     let mut runs = Vec::new();
     let mut host_seconds = Vec::new();
     for &method in &methods {
-        let (run, host) = run_method(&cfg, &patches, args, method)?;
+        let (run, host) = run_method(&cfg, &patches, args, &plan, method)?;
         runs.push(run);
         host_seconds.push(host);
     }
     let comparison = Comparison::new(
         &cfg,
         &scene.name,
-        patches.len(),
-        args.patch_size,
-        args.resolution,
+        (patches.len(), args.patch_size),
+        (args.resolution, plan.shooters_at_once),
         &runs,
     );
-    let last = runs.last().expect("at least one method");
-    let picture = match &scene.camera {
-        Some(camera) => {
+    let options = options_json(args, &plan, &scene, &cfg);
+    let stamp = format!(
+        "pxpl5 {} radiosity; options {}",
+        env!("CARGO_PKG_VERSION"),
+        options
+    );
+    let mut contents = vec![
+        format!("# {stamp}\n{}", comparison_csv(&comparison)).into_bytes(),
+        (serde_json::to_string_pretty(&comparison_json(&comparison, &options))
+            .map_err(UserError::from)?
+            + "\n")
+            .into_bytes(),
+        pxpl5_config::show(&cfg).into_bytes(),
+    ];
+    for run in &runs {
+        let mut pcsv = format!("# {stamp}\npatch,surface,area,r,g,b\n");
+        for (i, (p, b)) in patches.iter().zip(&run.solution.radiosity).enumerate() {
+            pcsv += &format!(
+                "{i},{},{:.6},{:.6},{:.6},{:.6}\n",
+                p.surface, p.area, b[0], b[1], b[2]
+            );
+        }
+        contents.push(pcsv.into_bytes());
+        if let Some(c) = &run.convergence {
+            let mut ccsv = format!("# {stamp}\nbatch,shots,simulated_s,worst_surface_error\n");
+            for (k, (t, shots, e)) in c.curve.iter().enumerate() {
+                ccsv += &format!("{k},{shots},{t:.9},{e:.6}\n");
+            }
+            contents.push(ccsv.into_bytes());
+        }
+        if let Some(camera) = &scene.camera {
             let (picture, _) = timed(
                 "polygons",
                 RunOptions::default().fidelity,
-                || picture::render(&cfg, &patches, &last.solution, camera.clone()),
+                || picture::render(&cfg, &patches, &run.solution, camera.clone()),
                 |r| r.stats.end,
             )?;
-            Some(png_bytes(&picture.frame)?)
+            contents.push(png_with_text(&picture.frame, &stamp)?);
         }
-        None => None,
-    };
+    }
 
     // Then write it all.
-    let mut pcsv = String::from("patch,surface,area,r,g,b\n");
-    for (i, (p, b)) in patches.iter().zip(&last.solution.radiosity).enumerate() {
-        pcsv += &format!(
-            "{i},{},{:.6},{:.6},{:.6},{:.6}\n",
-            p.surface, p.area, b[0], b[1], b[2]
-        );
-    }
-    let json =
-        serde_json::to_string_pretty(&comparison_json(&comparison)).map_err(UserError::from)?;
-    let mut contents = vec![
-        comparison_csv(&comparison).into_bytes(),
-        (json + "\n").into_bytes(),
-        pcsv.into_bytes(),
-        pxpl5_config::show(&cfg).into_bytes(),
-    ];
-    contents.extend(picture);
     let mut writes: Vec<_> = files.into_iter().zip(contents).collect();
     for (run, traces) in runs.iter().zip(&traces) {
         for (shot, views) in &run.item_buffers {
@@ -262,57 +362,238 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
     Ok(())
 }
 
+/// A PNG of `frame` with `text` in a tEXt chunk (keyword "Comment") and the simulator's name and
+/// version under "Software", so the picture says what produced it.
+fn png_with_text(
+    frame: &pxpl5_machine::FrameBufferImage,
+    text: &str,
+) -> Result<Vec<u8>, UserError> {
+    let mut out = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut out, frame.width, frame.height);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.add_text_chunk(
+            "Software".to_string(),
+            format!("pxpl5 {}", env!("CARGO_PKG_VERSION")),
+        )
+        .map_err(UserError::from)?;
+        enc.add_text_chunk("Comment".to_string(), text.to_string())
+            .map_err(UserError::from)?;
+        let mut w = enc.write_header().map_err(UserError::from)?;
+        w.write_image_data(&frame.rgb).map_err(UserError::from)?;
+    }
+    Ok(out)
+}
+
+/// The options a run resolved to, with the scene, the machine config's name and hash and the
+/// simulator's version: what every output records.
+fn options_json(
+    args: &RadiosityArgs,
+    plan: &Plan,
+    scene: &RadiosityScene,
+    cfg: &pxpl5_config::MachineConfig,
+) -> serde_json::Value {
+    use clap::ValueEnum;
+    let name = |v: Option<clap::builder::PossibleValue>| {
+        v.map_or(String::new(), |v| v.get_name().to_string())
+    };
+    serde_json::json!({
+        "version": env!("CARGO_PKG_VERSION"),
+        "config": cfg.name,
+        "config_hash": pxpl5_config::config_hash(cfg),
+        "scene": scene.name,
+        "scene_file": args.scene.as_ref().map(|p| p.display().to_string()),
+        "method": name(args.method.to_possible_value()),
+        "patch_size": args.patch_size,
+        "resolution": args.resolution,
+        "shots": plan.shots,
+        "until_error": plan.until_error,
+        "threshold": args.threshold,
+        "shooters_at_once": plan.shooters_at_once,
+        "edge_rule": name(args.edge_rule.to_possible_value()),
+        "delta": name(args.delta.to_possible_value()),
+        "all_faces": args.all_faces,
+        "rotation_seed": (!args.no_rotation).then_some(args.rotation_seed),
+        "depth": name(args.depth.to_possible_value()),
+        "fidelity": name(args.fidelity.to_possible_value()),
+    })
+}
+
+/// A percentage with enough digits to compare two methods.
+fn pct(x: f64) -> String {
+    format!("{:.2} %", 100.0 * x)
+}
+
 /// The comparison as the table printed on stdout, with each run's host seconds.
 fn table(c: &Comparison, host_seconds: &[f64]) -> String {
-    let mut table = format!(
-        "Progressive radiosity on {} ({}), scene {}, {} patches of <= {} units, resolution {}\n\n",
-        c.config, c.config_hash, c.scene, c.patches, c.patch_size, c.resolution
+    let m0 = &c.methods[0];
+    let mut t = format!(
+        "Progressive radiosity on {} ({}): {} GPs, {} Renderers, {} ring channels\n\
+         scene {}: {} patches of <= {} units; resolution {}; {} shooter{} per batch; every method \
+         on the same machine with the same view scheduler\n",
+        c.config,
+        c.config_hash,
+        m0.gps,
+        m0.boards,
+        m0.ring_channels,
+        c.scene,
+        c.patches,
+        c.patch_size,
+        c.resolution,
+        c.shooters_at_once,
+        if c.shooters_at_once == 1 { "" } else { "s" },
     );
-    for (m, host) in c.methods.iter().zip(host_seconds) {
-        let shots = m.shots.max(1);
-        table += &format!(
-            "{}: {} shots, {:.3} ms simulated ({:.3} ms per shot); seed's estimate {:.3} ms as written, {:.3} ms with readback x N\n",
-            m.method.name(),
-            m.shots,
-            m.simulated_s * 1e3,
-            m.simulated_s * 1e3 / shots as f64,
-            m.seed.as_written * 1e3,
-            m.seed.readback_x_n * 1e3,
-        );
-        table += "  phase (mean GP time per shot, ms):";
-        for (k, v) in &m.phases {
-            table += &format!(" {k} {:.3};", v * 1e3 / shots as f64);
+    match m0.convergence.as_ref() {
+        Some(conv) if conv.target > 0.0 => {
+            t += &format!(
+                "accuracy: against the direct solve with exact form factors on the same mesh; \
+                 the run stops once every surface is within {}\n",
+                pct(conv.target)
+            )
         }
-        table += &format!(
-            "\n  Renderer busy {:.3} ms (all boards), ring {} payload words, bottleneck: {}\n  reciprocity clamps {}, culled: {:?}\n  host {host:.2} s\n\n",
-            m.renderer_busy_s * 1e3,
-            m.ring_payload_words,
-            m.bottleneck,
-            m.reciprocity_clamps,
-            m.culls,
+        Some(_) => {
+            t += "accuracy: against the direct solve with exact form factors on the same mesh\n"
+        }
+        None => {
+            t += "accuracy: not measured (the scene can hide surfaces from others, so there is \
+                  no exact reference)\n"
+        }
+    }
+    t += "\n";
+    let w = 14;
+    let row = |label: &str, cells: Vec<String>| -> String {
+        let mut line = format!("  {label:<34}");
+        for cell in cells {
+            line += &format!("{cell:>w$}");
+        }
+        line + "\n"
+    };
+    let each = |f: &dyn Fn(&pxpl5_radiosity::comparison::MethodSummary) -> String| {
+        c.methods.iter().map(f).collect::<Vec<_>>()
+    };
+    t += &row("", each(&|m| m.method.name().to_string()));
+    t += &row("shots taken", each(&|m| m.shots.to_string()));
+    t += &row(
+        "time per shot (ms)",
+        each(&|m| format!("{:.3}", m.per_shot_s * 1e3)),
+    );
+    if m0.convergence.as_ref().is_some_and(|c| c.target > 0.0) {
+        t += &row(
+            "time to target (ms)",
+            each(
+                &|m| match m.convergence.as_ref().and_then(|c| c.time_to_target) {
+                    Some((s, _)) => format!("{:.1}", s * 1e3),
+                    None => "not reached".to_string(),
+                },
+            ),
+        );
+        t += &row(
+            "shots to target",
+            each(
+                &|m| match m.convergence.as_ref().and_then(|c| c.time_to_target) {
+                    Some((_, n)) => n.to_string(),
+                    None => "-".to_string(),
+                },
+            ),
+        );
+    }
+    if m0.convergence.is_some() {
+        t += &row(
+            "worst surface error at end",
+            each(&|m| {
+                m.convergence
+                    .as_ref()
+                    .and_then(|c| c.last.as_ref())
+                    .map_or("-".to_string(), |e| pct(e.worst))
+            }),
+        );
+        t += &row(
+            "form-factor error (mean L1 / shot)",
+            each(&|m| {
+                m.convergence
+                    .as_ref()
+                    .map_or("-".to_string(), |c| pct(c.form_factor_error))
+            }),
+        );
+    }
+    t += &row(
+        "Renderer board-ms per shot",
+        each(&|m| format!("{:.3}", m.renderer_busy_s * 1e3 / m.shots.max(1) as f64)),
+    );
+    t += &row(
+        "GP-ms per shot (all GPs)",
+        each(&|m| format!("{:.3}", m.gp_busy_s * 1e3 / m.shots.max(1) as f64)),
+    );
+    t += &row(
+        "ring words per shot",
+        each(&|m| format!("{}", m.ring_payload_words / m.shots.max(1) as u64)),
+    );
+    t += &row(
+        "Renderer utilisation",
+        each(&|m| pct(m.renderer_utilisation)),
+    );
+    t += &row("busiest GP activity", each(&|m| m.bottleneck.clone()));
+    t += &row(
+        "seed's estimate per shot (ms)",
+        each(&|m| format!("{:.3}", m.seed.as_written * 1e3 / m.shots.max(1) as f64)),
+    );
+    t += &row(
+        "host seconds",
+        host_seconds.iter().map(|h| format!("{h:.2}")).collect(),
+    );
+    t += "\n";
+    for m in &c.methods {
+        t += &format!("{}: phases (mean GP time per shot, ms):", m.method.name());
+        for (k, v) in &m.phases {
+            t += &format!(" {k} {:.3};", v * 1e3 / m.shots.max(1) as f64);
+        }
+        t += &format!(
+            "\n  reciprocity clamps {}, culled: {:?}\n",
+            m.reciprocity_clamps, m.culls
         );
     }
     if let Some(ratio) = c.hemicube_over_hemisphere() {
-        table += &format!(
-            "measured hemicube / hemisphere time: {ratio:.2} (the seed's claim: {SEED_RATIO})\n"
+        t += &format!(
+            "\nhemicube / hemisphere, time per shot: {ratio:.2} (the seed's claim: {SEED_RATIO})"
         );
+        if let Some(r) = c.hemicube_over_hemisphere_to_target() {
+            t += &format!("; time to target: {r:.2}");
+        }
+        t += "\n";
     }
-    table
+    t
 }
 
 /// The comparison as `comparison.csv`: a row per method.
 fn comparison_csv(c: &Comparison) -> String {
     let mut csv = String::from(
-        "method,shots,patches,simulated_s,per_shot_s,bottleneck,seed_estimate_s,seed_estimate_readback_x_n_s,reciprocity_clamps\n",
+        "method,shots,patches,shooters_at_once,simulated_s,per_shot_s,time_to_target_s,\
+         shots_to_target,target_error,final_error,form_factor_error,renderer_busy_s,gp_busy_s,\
+         ring_payload_words,renderer_utilisation,bottleneck,seed_estimate_s,\
+         seed_estimate_readback_x_n_s,reciprocity_clamps\n",
     );
+    let opt = |x: Option<f64>| x.map_or(String::new(), |x| format!("{x:.9}"));
     for m in &c.methods {
+        let conv = m.convergence.as_ref();
+        let to = conv.and_then(|c| c.time_to_target);
         csv += &format!(
-            "{},{},{},{:.9},{:.9},{},{:.9},{:.9},{}\n",
+            "{},{},{},{},{:.9},{:.9},{},{},{},{},{},{:.9},{:.9},{},{:.4},{},{:.9},{:.9},{}\n",
             m.method.name(),
             m.shots,
             c.patches,
+            c.shooters_at_once,
             m.simulated_s,
             m.per_shot_s,
+            opt(to.map(|t| t.0)),
+            to.map_or(String::new(), |t| t.1.to_string()),
+            opt(conv.map(|c| c.target)),
+            opt(conv.and_then(|c| c.last.as_ref()).map(|e| e.worst)),
+            opt(conv.map(|c| c.form_factor_error)),
+            m.renderer_busy_s,
+            m.gp_busy_s,
+            m.ring_payload_words,
+            m.renderer_utilisation,
             m.bottleneck,
             m.seed.as_written,
             m.seed.readback_x_n,
@@ -322,17 +603,32 @@ fn comparison_csv(c: &Comparison) -> String {
     csv
 }
 
-/// The comparison as `comparison.json`, with each run's full simulated stats.
-fn comparison_json(c: &Comparison) -> serde_json::Value {
+/// The comparison as `comparison.json`, with the options and each run's full simulated stats.
+fn comparison_json(c: &Comparison, options: &serde_json::Value) -> serde_json::Value {
     let methods: Vec<_> = c
         .methods
         .iter()
         .map(|m| {
+            let conv = m.convergence.as_ref().map(|c| {
+                serde_json::json!({
+                    "target_error": c.target,
+                    "time_to_target_s": c.time_to_target.map(|t| t.0),
+                    "shots_to_target": c.time_to_target.map(|t| t.1),
+                    "final_error": c.last.as_ref().map(|e| e.worst),
+                    "final_error_surface": c.last.as_ref().map(|e| e.surface.clone()),
+                    "form_factor_error": c.form_factor_error,
+                })
+            });
             serde_json::json!({
                 "method": m.method.name(),
                 "shots": m.shots,
                 "simulated_s": m.simulated_s,
                 "per_shot_s": m.per_shot_s,
+                "accuracy": conv,
+                "renderer_busy_s": m.renderer_busy_s,
+                "gp_busy_s": m.gp_busy_s,
+                "ring_payload_words": m.ring_payload_words,
+                "renderer_utilisation": m.renderer_utilisation,
                 "phases_mean_gp_s": m.phases,
                 "bottleneck": m.bottleneck,
                 "seed_estimate_s": m.seed.as_written,
@@ -343,7 +639,9 @@ fn comparison_json(c: &Comparison) -> serde_json::Value {
         })
         .collect();
     serde_json::json!({
+        "options": options,
         "config": c.config,
+        "config_hash": c.config_hash,
         "scene": c.scene,
         "patches": c.patches,
         "methods": methods,
@@ -384,8 +682,9 @@ pub struct FormFactorArgs {
     #[arg(long, value_enum, default_value_t = FormFactorMethod::Exact)]
     pub method: FormFactorMethod,
     /// Pixels across the disk or the hemicube's top face, 1 to 4096; the machine limits it
-    /// further (a disk of N pixels needs ceil(N / 128)^2 Renderers of 128 x 128; a hemicube
-    /// face must fit one Renderer, and N must be even).
+    /// further (a disk larger than a Renderer is cut into tiles of 128 x 128, drawn in turn, each
+    /// within the QEE's pixel addresses; a hemicube face must fit one Renderer, and N must be
+    /// even).
     #[arg(long, default_value_t = 128,
           value_parser = clap::value_parser!(u32).range(1..=MAX_RESOLUTION))]
     pub resolution: u32,
@@ -743,22 +1042,50 @@ mod tests {
         }
     }
 
-    /// `pxpl5 radiosity` with no flags runs the library's default experiment.
+    /// `pxpl5 radiosity` with no flags runs the library's default form-factor options and
+    /// machine-run options; its shots, target and batching are the command's experiment policy,
+    /// resolved from the machine and the scene (`Plan`).
     #[test]
     fn the_defaults_are_the_librarys() {
         let args = RadiosityArgs::defaults();
-        let (ours, lib) = (args.settings(Method::Hemisphere), Settings::default());
+        let cfg = pxpl5_config::default_config();
+        let scene = pxpl5_radiosity::scenes::cornell_empty();
+        let patches = mesh(&scene, args.patch_size).unwrap();
+        let Ok(plan) = Plan::new(&args, &cfg, &scene, &patches) else {
+            panic!("the defaults plan")
+        };
+        let (ours, lib) = (
+            args.settings(Method::Hemisphere, &plan),
+            Settings::default(),
+        );
         assert_eq!(ours.ff.method, lib.ff.method);
         assert_eq!(ours.ff.resolution, lib.ff.resolution);
         assert_eq!(ours.ff.edge_rule, lib.ff.edge_rule);
         assert_eq!(ours.ff.depth, lib.ff.depth);
         assert_eq!(ours.ff.exact_delta, lib.ff.exact_delta);
         assert_eq!(ours.ff.skip_faces, lib.ff.skip_faces);
-        assert_eq!(ours.shots, lib.shots);
+        assert_eq!(ours.ff.rotation, lib.ff.rotation);
         assert_eq!(ours.threshold, lib.threshold);
-        assert_eq!(ours.shooters_at_once, lib.shooters_at_once);
         assert_eq!(ours.item_shots, lib.item_shots);
         assert_eq!(ours.run.fidelity, lib.run.fidelity);
         assert_eq!(ours.run.max_time, lib.run.max_time);
+        // The policy: every Renderer gets a shooter; stop at 1 %, capped at 10 shots per patch.
+        assert_eq!(ours.shooters_at_once, cfg.renderer.count as usize);
+        assert_eq!(ours.target_error, Some(0.01));
+        assert_eq!(ours.shots, 10 * patches.len());
+        assert!(ours.reference.is_some());
+        // A scene with occluders has no reference: 6 shots, no target; asking for one is refused.
+        let full = pxpl5_radiosity::scenes::cornell_box();
+        let full_patches = mesh(&full, args.patch_size).unwrap();
+        let Ok(plan) = Plan::new(&args, &cfg, &full, &full_patches) else {
+            panic!("the defaults plan for the Cornell box")
+        };
+        assert_eq!((plan.shots, plan.until_error), (6, None));
+        let asked = RadiosityArgs {
+            until_error: Some(0.05),
+            ..RadiosityArgs::defaults()
+        };
+        let e = Plan::new(&asked, &cfg, &full, &full_patches).err().unwrap();
+        assert!(e.0.contains("no exact reference"), "{}", e.0);
     }
 }

@@ -10,6 +10,7 @@ use std::collections::BTreeMap;
 use pxpl5_config::MachineConfig;
 use pxpl5_machine::RunStats;
 
+use crate::accuracy::Convergence;
 use crate::experiment::{MethodRun, bottleneck, phase_times};
 use crate::seed::{SeedEstimate, seed_estimate};
 use crate::shot::{CullCounts, Method};
@@ -30,6 +31,8 @@ pub struct Comparison {
     pub patch_size: f64,
     /// Pixels across the hemisphere's disk and the hemicube's top face.
     pub resolution: u32,
+    /// Shooters per batch, the same for every method.
+    pub shooters_at_once: usize,
     /// One summary per method, in the order run.
     pub methods: Vec<MethodSummary>,
 }
@@ -52,6 +55,16 @@ pub struct MethodSummary {
     pub seed: SeedEstimate,
     /// Renderer busy time summed over every board, in simulated seconds.
     pub renderer_busy_s: f64,
+    /// GP busy time summed over every GP, in simulated seconds.
+    pub gp_busy_s: f64,
+    /// Renderer busy time over boards x the run's time: how well the schedule used the boards.
+    pub renderer_utilisation: f64,
+    /// The machine: GPs, Renderer boards and ring channels.
+    pub gps: usize,
+    pub boards: usize,
+    pub ring_channels: u32,
+    /// Accuracy against the scene's reference, when it has one.
+    pub convergence: Option<Convergence>,
     /// Payload words the ring carried.
     pub ring_payload_words: u64,
     /// Times reciprocity gave a form factor above 1, clamped.
@@ -68,6 +81,9 @@ impl MethodSummary {
         let simulated_s = run.stats.end.as_secs_f64();
         let phases = phase_times(&run.stats);
         let renderer_busy: u64 = run.stats.renderers.iter().map(|r| r.busy.0).sum();
+        let gp_busy: u64 = run.stats.gps.iter().map(|g| g.busy.0).sum();
+        let renderer_busy_s = renderer_busy as f64 / cfg.renderer.clock_hz as f64;
+        let boards = run.stats.renderers.len();
         MethodSummary {
             method: run.method,
             shots,
@@ -76,7 +92,17 @@ impl MethodSummary {
             bottleneck: bottleneck(&phases),
             phases,
             seed: seed_estimate(patches, shots.max(1), run.method),
-            renderer_busy_s: renderer_busy as f64 / cfg.renderer.clock_hz as f64,
+            renderer_busy_s,
+            gp_busy_s: gp_busy as f64 / cfg.gp.clock_hz as f64,
+            renderer_utilisation: if simulated_s > 0.0 && boards > 0 {
+                renderer_busy_s / (boards as f64 * simulated_s)
+            } else {
+                0.0
+            },
+            gps: run.stats.gps.len(),
+            boards,
+            ring_channels: cfg.ring.channels,
+            convergence: run.convergence.clone(),
             ring_payload_words: run.stats.ring.total.payload_words,
             reciprocity_clamps: run.solution.reciprocity_clamps,
             culls: run.solution.culls.clone(),
@@ -87,13 +113,13 @@ impl MethodSummary {
 
 impl Comparison {
     /// The comparison of `runs` of one scene (`scene`, meshed into `patches` patches of at most
-    /// `patch_size`) on the machine of `cfg` at `resolution`.
+    /// `patch_size`) on the machine of `cfg` at `resolution` with `shooters_at_once` shooters
+    /// per batch.
     pub fn new(
         cfg: &MachineConfig,
         scene: &str,
-        patches: usize,
-        patch_size: f64,
-        resolution: u32,
+        (patches, patch_size): (usize, f64),
+        (resolution, shooters_at_once): (u32, usize),
         runs: &[MethodRun],
     ) -> Comparison {
         Comparison {
@@ -103,6 +129,7 @@ impl Comparison {
             patches,
             patch_size,
             resolution,
+            shooters_at_once,
             methods: runs
                 .iter()
                 .map(|r| MethodSummary::new(cfg, patches, r))
@@ -110,14 +137,24 @@ impl Comparison {
         }
     }
 
-    /// The measured hemicube / hemisphere time ratio, when both ran (the seed claims
+    /// The measured hemicube / hemisphere ratio of the times per shot, when both ran (the seed claims
     /// [`SEED_RATIO`]).
     pub fn hemicube_over_hemisphere(&self) -> Option<f64> {
         let time = |m: Method| {
             self.methods
                 .iter()
                 .find(|s| s.method == m)
-                .map(|s| s.simulated_s)
+                .map(|s| s.per_shot_s)
+        };
+        Some(time(Method::Hemicube)? / time(Method::Hemisphere)?)
+    }
+
+    /// The measured hemicube / hemisphere ratio of the times to the target accuracy, when both
+    /// reached it.
+    pub fn hemicube_over_hemisphere_to_target(&self) -> Option<f64> {
+        let time = |m: Method| {
+            let s = self.methods.iter().find(|s| s.method == m)?;
+            Some(s.convergence.as_ref()?.time_to_target?.0)
         };
         Some(time(Method::Hemicube)? / time(Method::Hemisphere)?)
     }

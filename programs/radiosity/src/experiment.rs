@@ -17,8 +17,9 @@ use pxpl5_machine::{Machine, Recorder, RunError, RunOptions, RunStats};
 use pxpl5_renderer::Fidelity;
 use pxpl5_sim::Tick;
 
+use crate::accuracy::{Convergence, Reference};
 use crate::mesh::Patch;
-use crate::program::{FormFactorProgram, FormFactorResult, RadiosityProgram, Solution};
+use crate::program::{FormFactorProgram, FormFactorResult, Observer, RadiosityProgram, Solution};
 use crate::shot::{FfOptions, ItemBuffer, Method};
 
 /// How one method runs: the form-factor options (with the method), the refinement's limits, and
@@ -36,6 +37,11 @@ pub struct Settings {
     /// Shots (0-based) whose item buffers to keep.
     pub item_shots: Vec<usize>,
     pub run: RunOptions,
+    /// The scene's reference solution: with it, the run's accuracy is measured batch by batch
+    /// ([`MethodRun::convergence`]).
+    pub reference: Option<Rc<Reference>>,
+    /// Stop once every surface is within this relative error of the reference (needs one).
+    pub target_error: Option<f64>,
 }
 
 impl Default for Settings {
@@ -43,9 +49,11 @@ impl Default for Settings {
         Settings {
             ff: FfOptions::default(),
             shots: 6,
-            threshold: 0.001,
+            threshold: 0.0,
             shooters_at_once: 1,
             item_shots: Vec::new(),
+            reference: None,
+            target_error: None,
             run: RunOptions {
                 fidelity: Fidelity::Integer,
                 // 1,000 simulated seconds, far beyond the machine's default of 10: a fine mesh
@@ -67,6 +75,8 @@ pub struct MethodRun {
     pub item_buffers: Vec<(usize, Vec<ItemBuffer>)>,
     /// The run's traces, as recorded by the recorder given to [`run`].
     pub recorder: Recorder,
+    /// Its accuracy batch by batch, when the settings had a reference.
+    pub convergence: Option<Convergence>,
 }
 
 impl MethodRun {
@@ -92,6 +102,16 @@ pub fn run(
     );
     program.item_shots = settings.item_shots.clone();
     program.shooters_at_once = settings.shooters_at_once;
+    if let Some(reference) = &settings.reference {
+        let mut observer = Observer::default();
+        if let Some(target) = settings.target_error {
+            let reference = reference.clone();
+            observer.target = Some(Box::new(move |radiosity: &[[f64; 3]]| {
+                reference.surface_error(radiosity).worst <= target
+            }));
+        }
+        program.observer = Some(Rc::new(RefCell::new(observer)));
+    }
     let result = Machine::new(cfg, &program, settings.run.clone(), recorder)?.run()?;
     // The machine is gone, so the program's shared state has no other reader: move it out.
     let solution = std::mem::take(&mut *program.solution.borrow_mut());
@@ -99,12 +119,20 @@ pub fn run(
         .into_iter()
         .map(|(shot, views)| (shot, std::mem::take(&mut *views.borrow_mut())))
         .collect();
+    let convergence = program
+        .observer
+        .zip(settings.reference.as_ref())
+        .map(|(o, r)| {
+            let batches = std::mem::take(&mut o.borrow_mut().batches);
+            Convergence::new(r, &batches, settings.target_error.unwrap_or(0.0))
+        });
     Ok(MethodRun {
         method: settings.ff.method,
         stats: result.stats,
         solution,
         item_buffers,
         recorder: result.recorder,
+        convergence,
     })
 }
 

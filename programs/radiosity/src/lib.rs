@@ -9,6 +9,7 @@
 //! methods side by side ([`comparison`]), and pictures of the solution and of item buffers
 //! ([`picture`]).
 
+pub mod accuracy;
 pub mod comparison;
 pub mod exact;
 pub mod experiment;

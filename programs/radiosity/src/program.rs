@@ -210,6 +210,60 @@ pub struct Solution {
     pub culls: CullCounts,
     /// Whether the convergence threshold stopped the run.
     pub converged: bool,
+    /// Whether the observer's target stopped the run ([`Observer::target`]).
+    pub target_reached: bool,
+}
+
+/// What the host watches of a run, outside simulated time (no GP pays for it, nothing simulated
+/// reads it): after each batch of shots, the radiosity of every patch and the form factors the
+/// machine computed for each shooter, each GP writing its own patches' part; and optionally a
+/// target that stops the run.
+#[derive(Default)]
+pub struct Observer {
+    pub batches: Vec<Batch>,
+    /// When set, GP 0 asks it, as it selects the next shooters, whether the last batch's
+    /// solution is good enough, and stops the run if so: an experiment's control (time to a
+    /// given accuracy), which the 1989 machine could not have had, since it needs the reference.
+    pub target: Option<Target>,
+}
+
+/// An observer's test of a solution (one radiosity per patch): is it good enough to stop?
+pub type Target = Box<dyn Fn(&[[f64; 3]]) -> bool>;
+
+/// One batch of shots as the observer saw it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Batch {
+    /// When the last GP finished the batch's radiosity update.
+    pub end: Tick,
+    /// The shooting patches.
+    pub shooters: Vec<usize>,
+    /// Every patch's radiosity after the batch.
+    pub radiosity: Vec<[f64; 3]>,
+    /// Per shooter, the form factor from it to every patch as the machine computed it (0 for
+    /// a patch it did not see).
+    pub form_factors: Vec<Vec<f64>>,
+}
+
+impl Observer {
+    /// Batch `k`, created empty for `patches` patches and `shooters` shooters if it is new.
+    fn batch(&mut self, k: usize, patches: usize, shooters: usize) -> &mut Batch {
+        while self.batches.len() <= k {
+            self.batches.push(Batch {
+                radiosity: vec![[0.0; 3]; patches],
+                form_factors: vec![vec![0.0; patches]; shooters],
+                ..Batch::default()
+            });
+        }
+        &mut self.batches[k]
+    }
+
+    /// Whether the target holds for the last complete batch (false with no target or batch).
+    fn target_reached(&self) -> bool {
+        match (&self.target, self.batches.last()) {
+            (Some(target), Some(b)) => target(&b.radiosity),
+            _ => false,
+        }
+    }
 }
 
 /// Progressive refinement on the machine.
@@ -230,6 +284,8 @@ pub struct RadiosityProgram {
     pub item_shots: Vec<usize>,
     /// The kept item buffers: (shot, its views).
     pub item_buffers: Rc<RefCell<Vec<(usize, ItemBuffers)>>>,
+    /// The host's view of the run, batch by batch (none by default).
+    pub observer: Option<Rc<RefCell<Observer>>>,
 }
 
 impl RadiosityProgram {
@@ -250,6 +306,7 @@ impl RadiosityProgram {
             shooters_at_once: 1,
             item_shots: Vec::new(),
             item_buffers: Rc::default(),
+            observer: None,
         }
     }
 }
@@ -291,6 +348,7 @@ struct GpSolution {
     shots: Vec<(usize, Tick)>,
     reciprocity_clamps: u64,
     converged: bool,
+    target_reached: bool,
 }
 
 impl GpSolution {
@@ -303,6 +361,7 @@ impl GpSolution {
         out.shots.extend(self.shots);
         out.reciprocity_clamps += self.reciprocity_clamps;
         out.converged |= self.converged;
+        out.target_reached |= self.target_reached;
         add_culls(&mut out.culls, culls);
     }
 }
@@ -319,6 +378,7 @@ impl Program for RadiosityProgram {
             (self.options, self.shots, self.threshold, self.scale);
         let item_shots = self.item_shots.clone();
         let item_buffers = self.item_buffers.clone();
+        let observer = self.observer.clone();
         let at_once = self.shooters_at_once.max(1);
         Box::pin(async move {
             let (g, gps) = (gp.index() as usize, gp.gp_count() as usize);
@@ -344,18 +404,33 @@ impl Program for RadiosityProgram {
                 shots: Vec::new(),
                 reciprocity_clamps: 0,
                 converged: false,
+                target_reached: false,
             };
             let mut culls = CullCounts::default();
             let mut w_tables = WTables::default();
             // Shots taken so far: every GP counts the same picks.
             let mut taken = 0usize;
+            let mut batches = 0usize;
             while taken < shots {
                 let batch = at_once.min(shots - taken);
                 let _shot = tracing::debug_span!("shot", gp = g, first = taken).entered();
                 gp.phase("select");
-                let picks = select(&gp, &patches, &owned, &mine, batch, emitted, threshold).await;
+                // GP 0 asks the observer once every GP's update of the last batch is in: their
+                // proposals, sent after it, have all arrived when GP 0 picks.
+                let stop = || {
+                    observer
+                        .as_ref()
+                        .is_some_and(|o| o.borrow().target_reached())
+                };
+                let limits = Limits {
+                    batch,
+                    emitted,
+                    threshold,
+                };
+                let (picks, reached) = select(&gp, &patches, &owned, &mine, limits, stop).await;
                 if picks.is_empty() {
-                    mine.converged = g == 0;
+                    mine.converged = g == 0 && !reached;
+                    mine.target_reached = g == 0 && reached;
                     break;
                 }
                 let shooters: Vec<Shooter> = picks
@@ -408,6 +483,19 @@ impl Program for RadiosityProgram {
                     let now = gp.now();
                     mine.shots.extend(picks.iter().map(|p| (p.patch, now)));
                 }
+                if let Some(observer) = &observer {
+                    let mut o = observer.borrow_mut();
+                    let b = o.batch(batches, patches.len(), picks.len());
+                    for &j in &owned {
+                        b.radiosity[j] = mine.radiosity[j];
+                    }
+                    for (&(k, j), &f) in &factors {
+                        b.form_factors[k][j] = f;
+                    }
+                    b.end = b.end.max(gp.now());
+                    b.shooters = picks.iter().map(|p| p.patch).collect();
+                }
+                batches += 1;
                 taken += picks.len();
             }
             mine.publish(&owned, &culls, &mut output.borrow_mut());
@@ -417,19 +505,32 @@ impl Program for RadiosityProgram {
     }
 }
 
+/// What bounds a batch's selection: its size, and the threshold of unshot power over `emitted`
+/// power below which the run has converged.
+struct Limits {
+    batch: usize,
+    emitted: f64,
+    threshold: f64,
+}
+
 /// Shooter selection: every GP proposes its `batch` owned patches of largest unshot power; GP 0
-/// picks the `batch` best overall (none once the largest unshot power is below `threshold` of
-/// `emitted`) and tells everyone. Charged: one radiosity-update operation per owned patch to rank
-/// them.
+/// picks the `batch` best overall and tells everyone. It picks none once the largest unshot power
+/// is below the threshold, or when `stop` says the observer's target is reached (then the
+/// second value is true, on GP 0). Charged: one radiosity-update operation per owned patch to
+/// rank them.
 async fn select(
     gp: &Gp,
     patches: &[Patch],
     owned: &[usize],
     mine: &GpSolution,
-    batch: usize,
-    emitted: f64,
-    threshold: f64,
-) -> Vec<Pick> {
+    limits: Limits,
+    stop: impl Fn() -> bool,
+) -> (Vec<Pick>, bool) {
+    let Limits {
+        batch,
+        emitted,
+        threshold,
+    } = limits;
     let proposal: Vec<Candidate> = gp
         .work(|cost| {
             cost.add(Op::RadiosityUpdatePerPatch, owned.len() as u64);
@@ -449,13 +550,14 @@ async fn select(
     let gps = gp.gp_count();
     if gp.index() != 0 {
         gp.send_records(0, Tags::Propose, &proposal).await;
-        return gp.recv_records(Tags::Shooter, 1).await;
+        return (gp.recv_records(Tags::Shooter, 1).await, false);
     }
     let mut all = proposal;
     all.extend(gp.recv_records::<Candidate>(Tags::Propose, gps - 1).await);
     all.sort_by(|a, b| b.power.total_cmp(&a.power).then(a.patch.cmp(&b.patch)));
     let best = all.first().map_or(0.0, |c| c.power);
-    let picks: Vec<Pick> = if emitted <= 0.0 || best / emitted < threshold {
+    let reached = stop();
+    let picks: Vec<Pick> = if reached || emitted <= 0.0 || best / emitted < threshold {
         Vec::new()
     } else {
         all.iter()
@@ -470,7 +572,7 @@ async fn select(
     for other in 1..gps {
         gp.send_records(other, Tags::Shooter, &picks).await;
     }
-    picks
+    (picks, reached)
 }
 
 /// Send every partial form factor to its receiver's owner and gather those of this GP's

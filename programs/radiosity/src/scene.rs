@@ -88,6 +88,24 @@ impl RadiosityScene {
     }
 }
 
+impl RadiosityScene {
+    /// Whether no surface can hide part of another from a third: every vertex lies on or in front
+    /// of every surface's plane (within [`PLANARITY_TOLERANCE`] of the scene's size), so the
+    /// surfaces bound a convex region, as the inside of a box does. Then the exact, unoccluded
+    /// form factors of [`crate::solver`] are the true ones and its direct solve is the scene's
+    /// reference solution; a scene with anything inside (the Cornell box's blocks) has none.
+    pub fn unoccluded(&self) -> bool {
+        let all: Vec<DVec3> = self.surfaces.iter().flat_map(|s| s.points()).collect();
+        let tolerance = PLANARITY_TOLERANCE * pxpl5_geom::plane::bounding_diagonal(&all);
+        self.surfaces.iter().all(|s| {
+            s.plane().is_some_and(|plane| {
+                all.iter()
+                    .all(|&v| plane.normal.dot(v - plane.point) >= -tolerance)
+            })
+        })
+    }
+}
+
 impl Surface {
     /// The vertices as vectors.
     pub fn points(&self) -> Vec<DVec3> {

@@ -1,10 +1,11 @@
 //! The experiment `pxpl5 radiosity` reports, run through the library as any Rust program can:
 //! both methods on a coarse Cornell box, a comparison whose figures agree with the runs and the
 //! seed's estimate, kept item buffers, the picture drawn on the machine; and one form factor on
-//! the machine near the exact value.
+//! the machine near the exact value; both methods converging to the empty box's reference.
 
 use pxpl5_geom::DVec3;
 use pxpl5_machine::Recorder;
+use pxpl5_radiosity::accuracy::Reference;
 use pxpl5_radiosity::comparison::Comparison;
 use pxpl5_radiosity::experiment::{self, Settings, bottleneck};
 use pxpl5_radiosity::mesh::mesh;
@@ -33,7 +34,7 @@ fn both_methods_compared_and_pictured() {
             experiment::run(&cfg, &patches, &settings, Recorder::default()).expect("runs")
         })
         .collect();
-    let c = Comparison::new(&cfg, &scene.name, patches.len(), 300.0, 32, &runs);
+    let c = Comparison::new(&cfg, &scene.name, (patches.len(), 300.0), (32, 1), &runs);
     assert_eq!(c.methods.len(), 2);
     for (m, run) in c.methods.iter().zip(&runs) {
         assert_eq!((m.method, m.shots), (run.method, 2));
@@ -58,7 +59,10 @@ fn both_methods_compared_and_pictured() {
         assert!(frame.rgb.iter().any(|&x| x != 0), "no patch seen");
     }
     let ratio = c.hemicube_over_hemisphere().expect("both methods ran");
-    assert_eq!(ratio, c.methods[1].simulated_s / c.methods[0].simulated_s);
+    assert_eq!(ratio, c.methods[1].per_shot_s / c.methods[0].per_shot_s);
+    // The Cornell box with its blocks has no reference: no accuracy figures, no target time.
+    assert!(c.methods.iter().all(|m| m.convergence.is_none()));
+    assert_eq!(c.hemicube_over_hemisphere_to_target(), None);
 
     let camera = scene.camera.clone().expect("the Cornell box has a camera");
     let drawn = picture::render(&cfg, &patches, &runs[1].solution, camera).expect("draws");
@@ -71,6 +75,77 @@ fn both_methods_compared_and_pictured() {
         lit.count() > drawn.frame.rgb.len() / 3 / 4,
         "the box fills the picture"
     );
+}
+
+/// Both methods, on the same machine and batching, converge to the reference solution of the
+/// empty Cornell box: every surface within 1 %, and the run stops at the first batch that is.
+#[test]
+fn both_methods_converge_to_the_reference_within_one_percent() {
+    let cfg = pxpl5_config::default_config();
+    let scene = scenes::cornell_empty();
+    let patches = mesh(&scene, 200.0).expect("meshes");
+    let reference = std::rc::Rc::new(Reference::new(&scene, &patches).expect("unoccluded"));
+    let mut runs = Vec::new();
+    for method in [Method::Hemisphere, Method::Hemicube] {
+        let settings = Settings {
+            ff: FfOptions {
+                method,
+                ..FfOptions::default()
+            },
+            shots: 10 * patches.len(),
+            shooters_at_once: 4,
+            reference: Some(reference.clone()),
+            target_error: Some(0.01),
+            ..Settings::default()
+        };
+        let run = experiment::run(&cfg, &patches, &settings, Recorder::default()).expect("runs");
+        let conv = run.convergence.clone().expect("a reference was given");
+        let (t, shots) = conv.time_to_target.expect("1 % is reached");
+        assert!(
+            run.solution.target_reached,
+            "{method:?}: the target stopped the run"
+        );
+        // The run stopped at the first batch within 1 %: the last, and the one before is not.
+        let n = conv.curve.len();
+        assert_eq!((t, shots), (conv.curve[n - 1].0, conv.curve[n - 1].1));
+        assert!(conv.curve[n - 1].2 <= 0.01 && conv.curve[n - 2].2 > 0.01);
+        assert_eq!(shots, run.shots_taken());
+        // The curve's figure is the reference's verdict on the solution the run returns.
+        let last = reference.surface_error(&run.solution.radiosity);
+        assert_eq!(conv.last.as_ref(), Some(&last));
+        assert!(last.worst <= 0.01, "{method:?}: {last:?}");
+        // Within a few shots per patch, as progressive refinement with exact form factors.
+        assert!(
+            shots > 2 * patches.len() && shots < 5 * patches.len(),
+            "{method:?}: {shots} shots for {} patches",
+            patches.len()
+        );
+        // The machine's form factors are a percent or two off the exact ones at 128 pixels.
+        assert!(
+            conv.form_factor_error > 0.001 && conv.form_factor_error < 0.05,
+            "{method:?}: {}",
+            conv.form_factor_error
+        );
+        runs.push(run);
+    }
+    let c = Comparison::new(&cfg, &scene.name, (patches.len(), 200.0), (128, 4), &runs);
+    let to_target = c
+        .hemicube_over_hemisphere_to_target()
+        .expect("both reached 1 %");
+    let t = |k: usize| {
+        c.methods[k]
+            .convergence
+            .as_ref()
+            .unwrap()
+            .time_to_target
+            .unwrap()
+            .0
+    };
+    assert_eq!(to_target, t(1) / t(0));
+    for m in &c.methods {
+        assert!(m.renderer_utilisation > 0.3 && m.renderer_utilisation <= 1.0);
+        assert!(m.gp_busy_s > 0.0 && (m.gps, m.boards) == (16, 4));
+    }
 }
 
 #[test]
