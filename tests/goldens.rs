@@ -167,6 +167,7 @@ fn radiosity_golden(config_file: &str, method: Method) -> String {
         coplanar,
         outside_face,
         unrepresentable,
+        depth_range,
     } = s.culls;
     let shooters: Vec<String> = s.shots.iter().map(|(i, _)| i.to_string()).collect();
     let functional = [
@@ -175,7 +176,8 @@ fn radiosity_golden(config_file: &str, method: Method) -> String {
         format!("reciprocity clamps: {}", s.reciprocity_clamps),
         format!(
             "culls: back-facing {back_facing}, below horizon {below_horizon}, coplanar \
-             {coplanar}, outside face {outside_face}, unrepresentable {unrepresentable}"
+             {coplanar}, outside face {outside_face}, unrepresentable {unrepresentable}, \
+             depth range {depth_range}"
         ),
         format!("solution fnv1a64: {digest:016x}"),
     ];

@@ -14,13 +14,14 @@ use std::collections::BTreeMap;
 use std::rc::Rc;
 
 use pxpl5_geom::DVec3;
-use pxpl5_machine::{Gp, GpFuture, Op, Program, ProgramError, Record};
+use pxpl5_machine::{Cost, Gp, GpFuture, Op, Program, ProgramError, Record};
 use pxpl5_sim::Tick;
 
 use crate::mesh::Patch;
 use crate::shot::{
     CullCounts, FfOptions, ItemBuffers, Partial, Receiver, Shooter, Tags, WTables, shoot,
 };
+use crate::views::shot_scale;
 
 /// A receiver's form factor (from a shot's shooter), as GPs exchange it: one 32-bit ring word per
 /// value (\[assumed\]: the i860 sends single-precision floats and integers; the simulator keeps
@@ -117,6 +118,8 @@ pub struct FormFactorProgram {
 }
 
 impl FormFactorProgram {
+    /// The frame scale: the farthest vertex's distance, unless a polygon's plane passes nearer
+    /// than depth allows ([`shot_scale`]).
     fn scale(&self) -> f64 {
         let mut m: f64 = 0.0;
         for p in &self.polygons {
@@ -124,8 +127,21 @@ impl FormFactorProgram {
                 m = m.max((*v - self.point).length());
             }
         }
-        m.max(f64::MIN_POSITIVE)
+        let size = m.max(f64::MIN_POSITIVE);
+        let planes = self.polygons.iter().filter_map(|p| {
+            let plane = pxpl5_geom::plane::best_fit_plane(p)?;
+            Some(plane.normal.dot(self.point - plane.point).abs())
+        });
+        shot_scale(size, nearest_beyond(planes, size))
     }
+}
+
+/// The smallest of `distances` (from a shooter to receivers' planes) that is not coplanar with it
+/// (below 1e-9 of `size`: such a receiver is culled, F = 0); infinite if there is none.
+fn nearest_beyond(distances: impl Iterator<Item = f64>, size: f64) -> f64 {
+    distances
+        .filter(|&d| d > 1e-9 * size)
+        .fold(f64::INFINITY, f64::min)
 }
 
 impl Program for FormFactorProgram {
@@ -196,6 +212,7 @@ fn add_culls(a: &mut CullCounts, b: &CullCounts) {
     a.coplanar += b.coplanar;
     a.outside_face += b.outside_face;
     a.unrepresentable += b.unrepresentable;
+    a.depth_range += b.depth_range;
 }
 
 /// The state of the progressive solution: per patch radiosity and unshot radiosity per band.
@@ -315,27 +332,45 @@ fn power(p: &Patch, unshot: [f64; 3]) -> f64 {
     (unshot[0] + unshot[1] + unshot[2]) * p.area
 }
 
-/// One shooter GP 0 picked: its patch and its unshot radiosity at selection (one 32-bit word per
+/// One shooter GP 0 picked: its patch, its unshot radiosity at selection, and the frame scale of
+/// its shot ([`shot_scale`]), so every GP draws with the same depth scale (one 32-bit word per
 /// value, as [`ReceiverFactor`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Pick {
     patch: usize,
     unshot: [f64; 3],
+    scale: f64,
 }
 
 impl Record for Pick {
-    const VALUES: usize = 4;
-    const WORDS: u32 = 4;
+    const VALUES: usize = 5;
+    const WORDS: u32 = 5;
     fn encode(&self, out: &mut Vec<f64>) {
         out.push(self.patch as f64);
         out.extend(self.unshot);
+        out.push(self.scale);
     }
     fn decode(v: &[f64]) -> Self {
         Pick {
             patch: v[0] as usize,
             unshot: [v[1], v[2], v[3]],
+            scale: v[4],
         }
     }
+}
+
+/// The frame scale of a shot from patch `i`: the scene's `size`, or less if another patch's plane
+/// passes so near patch i's centre that depth would leave its field ([`shot_scale`]). GP 0 knows
+/// every patch's plane (the scene is every GP's input) and charges one clip test per patch.
+fn pick_scale(patches: &[Patch], i: usize, size: f64, cost: &mut Cost) -> f64 {
+    cost.add(Op::ClipTest, patches.len() as u64);
+    let c = patches[i].centre;
+    let planes = patches
+        .iter()
+        .enumerate()
+        .filter(|&(j, _)| j != i)
+        .map(|(_, p)| p.normal.dot(c - p.centre).abs());
+    shot_scale(size, nearest_beyond(planes, size))
 }
 
 /// What one GP knows of the solution: the radiosity and unshot radiosity of the patches it owns
@@ -426,6 +461,7 @@ impl Program for RadiosityProgram {
                     batch,
                     emitted,
                     threshold,
+                    scale,
                 };
                 let (picks, reached) = select(&gp, &patches, &owned, &mine, limits, stop).await;
                 if picks.is_empty() {
@@ -439,7 +475,7 @@ impl Program for RadiosityProgram {
                     .map(|(k, p)| Shooter {
                         point: patches[p.patch].centre,
                         normal: patches[p.patch].normal,
-                        scale,
+                        scale: p.scale,
                         turn: opts.turn(taken + k),
                     })
                     .collect();
@@ -511,6 +547,9 @@ struct Limits {
     batch: usize,
     emitted: f64,
     threshold: f64,
+    /// The scene's size, the frame scale of a shot unless a receiver is too near
+    /// ([`pick_scale`]).
+    scale: f64,
 }
 
 /// Shooter selection: every GP proposes its `batch` owned patches of largest unshot power; GP 0
@@ -530,6 +569,7 @@ async fn select(
         batch,
         emitted,
         threshold,
+        scale,
     } = limits;
     let proposal: Vec<Candidate> = gp
         .work(|cost| {
@@ -560,14 +600,18 @@ async fn select(
     let picks: Vec<Pick> = if reached || emitted <= 0.0 || best / emitted < threshold {
         Vec::new()
     } else {
-        all.iter()
-            .take(batch)
-            .filter(|c| c.power > 0.0)
-            .map(|c| Pick {
-                patch: c.patch,
-                unshot: c.unshot,
-            })
-            .collect()
+        let chosen: Vec<&Candidate> = all.iter().take(batch).filter(|c| c.power > 0.0).collect();
+        gp.work(|cost| {
+            chosen
+                .iter()
+                .map(|c| Pick {
+                    patch: c.patch,
+                    unshot: c.unshot,
+                    scale: pick_scale(patches, c.patch, scale, cost),
+                })
+                .collect()
+        })
+        .await
     };
     for other in 1..gps {
         gp.send_records(other, Tags::Shooter, &picks).await;
@@ -640,7 +684,9 @@ fn update(
         }
     }
     for (&(k, j), &f) in factors {
-        let Pick { patch: i, unshot } = picks[k];
+        let Pick {
+            patch: i, unshot, ..
+        } = picks[k];
         if j == i {
             continue;
         }

@@ -131,6 +131,8 @@ pub struct CullCounts {
     pub coplanar: u64,
     pub outside_face: u64,
     pub unrepresentable: u64,
+    /// Receivers so near the shooter that their depth could leave the field's range.
+    pub depth_range: u64,
 }
 
 impl CullCounts {
@@ -141,6 +143,7 @@ impl CullCounts {
             Cull::Coplanar => self.coplanar += 1,
             Cull::OutsideFace => self.outside_face += 1,
             Cull::Unrepresentable => self.unrepresentable += 1,
+            Cull::DepthRange => self.depth_range += 1,
         }
     }
 }
@@ -472,7 +475,8 @@ pub struct WTables {
 pub struct Shooter {
     pub point: DVec3,
     pub normal: DVec3,
-    /// The scene's size: frame units per scene unit are 1/scale (the same on every GP).
+    /// Scene units per frame unit, the same on every GP: the scene's size, or less for a shooter
+    /// near a receiver's plane ([`crate::views::shot_scale`]).
     pub scale: f64,
     /// The view's turn about the normal, (cos a, sin a) ([`FfOptions::turn`]).
     pub turn: (f64, f64),

@@ -146,6 +146,25 @@ pub const DEPTH_BITS: u32 = 28;
 /// Fractional bits of stored depth: 1/distance up to 2^(DEPTH_BITS - 1 - DEPTH_FRAC) = 512.
 pub const DEPTH_FRAC: u32 = 18;
 
+/// The bound on the depth field's lambda (1/distance in frame units), exclusive: 2^(DEPTH_BITS - 1
+/// - DEPTH_FRAC) = 512. A receiver that could exceed it is culled and counted
+/// ([`Cull::DepthRange`]), never drawn with a wrapped depth.
+pub const MAX_LAMBDA: f64 = (1u64 << (DEPTH_BITS - 1 - DEPTH_FRAC)) as f64;
+
+/// The frame scale of a shot (scene units per frame unit): the scene's size, unless a receiver's
+/// plane passes within `nearest` (scene units, > 0) of the shooter closer than the depth field
+/// allows, then `nearest` x [`MAX_LAMBDA`] / 4, so that every receiver's lambda, at most
+/// sqrt(3) / (its plane's distance) in frame units ([`receiver_plane`]), stays below
+/// [`MAX_LAMBDA`] / 2. Form factors do not depend on the scale; depth's precision for far
+/// receivers does (2^-18 of lambda), which is why the scene's size stays the default.
+pub fn shot_scale(size: f64, nearest: f64) -> f64 {
+    if nearest > 0.0 && nearest.is_finite() {
+        size.min(nearest * MAX_LAMBDA / 4.0)
+    } else {
+        size
+    }
+}
+
 /// Scale real coefficients so the largest magnitude is just under 2^int_bits, then quantise: for
 /// sign tests only (a positive factor keeps every sign).
 pub fn quantise_for_sign(c: [f64; 6], f: FixedFormat) -> Option<QeeExpr> {
@@ -170,11 +189,17 @@ pub enum Cull {
     OutsideFace,
     /// A coefficient does not fit the QEE format.
     Unrepresentable,
+    /// So near the shooter that its depth (1/distance) could exceed the depth field's range
+    /// ([`MAX_LAMBDA`]); the shot's scale ([`shot_scale`]) makes this rare.
+    DepthRange,
 }
 
 /// A receiver's plane n'.x = d' in the shooter's frame, or why the GP culls it: wholly below the
-/// horizon, its plane through the shooter (d' = 0: F = 0 and depth undefined), or facing away
-/// (the shooter must be on its front side, d' < 0).
+/// horizon, its plane through the shooter (d' = 0: F = 0 and depth undefined), facing away (the
+/// shooter must be on its front side, d' < 0), or so near that its depth could leave the field's
+/// range: a point of the plane at distance rho >= |d'| has lambda = 1/rho on the hemisphere and
+/// 1/Z <= sqrt(3)/rho on a hemicube face (Z >= rho / sqrt(3) inside the face's frustum), so
+/// sqrt(3)/|d'| must stay below [`MAX_LAMBDA`].
 fn receiver_plane(verts: &[DVec3]) -> Result<(DVec3, f64), Cull> {
     let normal = (verts[1] - verts[0]).cross(verts[2] - verts[0]).normalize();
     let d = normal.dot(verts[0]);
@@ -186,6 +211,9 @@ fn receiver_plane(verts: &[DVec3]) -> Result<(DVec3, f64), Cull> {
     }
     if d > 0.0 {
         return Err(Cull::BackFacing);
+    }
+    if 3f64.sqrt() / d.abs() >= MAX_LAMBDA {
+        return Err(Cull::DepthRange);
     }
     Ok((normal, d))
 }
