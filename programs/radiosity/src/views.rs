@@ -146,8 +146,8 @@ pub const DEPTH_BITS: u32 = 28;
 /// Fractional bits of stored depth: 1/distance up to 2^(DEPTH_BITS - 1 - DEPTH_FRAC) = 512.
 pub const DEPTH_FRAC: u32 = 18;
 
-/// The bound on the depth field's lambda (1/distance in frame units), exclusive: 2^(DEPTH_BITS - 1
-/// - DEPTH_FRAC) = 512. A receiver that could exceed it is culled and counted
+/// The bound on the depth field's lambda (1/distance in frame units), exclusive:
+/// 2^(DEPTH_BITS - 1 - DEPTH_FRAC) = 512. A receiver that could exceed it is culled and counted
 /// ([`Cull::DepthRange`]), never drawn with a wrapped depth.
 pub const MAX_LAMBDA: f64 = (1u64 << (DEPTH_BITS - 1 - DEPTH_FRAC)) as f64;
 
