@@ -168,6 +168,7 @@ fn radiosity_golden(config_file: &str, method: Method) -> String {
         outside_face,
         unrepresentable,
         depth_range,
+        drawn: _,
     } = s.culls;
     let shooters: Vec<String> = s.shots.iter().map(|(i, _)| i.to_string()).collect();
     let functional = [

@@ -562,6 +562,23 @@ fn table(c: &Comparison, host_seconds: &[f64]) -> String {
         }
         t += "\n";
     }
+    if let Some(k) = &c.seed_check {
+        t += &format!(
+            "\nthe seed's assumptions, against what the machine did:\n\
+             - 5 broadcasts of every patch for the hemicube, 1 for the hemisphere: the hemicube drew \
+             {:.2} x the hemisphere's receivers per shot (a receiver goes only to the faces it may \
+             touch)\n\
+             - one 128 x 128 readback per run: every shot reads back its views, {} pixels per \
+             hemisphere shot and {} per hemicube shot\n\
+             - 1 us of Renderer time per polygon (10^6 per second), a hemisphere edge as cheap as a \
+             hemicube edge: {:.1} us per hemisphere receiver, {:.1} us per hemicube receiver\n",
+            k.drawn_ratio,
+            k.readback_pixels_per_shot.0,
+            k.readback_pixels_per_shot.1,
+            k.renderer_us_per_receiver.0,
+            k.renderer_us_per_receiver.1,
+        );
+    }
     t
 }
 
@@ -638,8 +655,22 @@ fn comparison_json(c: &Comparison, options: &serde_json::Value) -> serde_json::V
             })
         })
         .collect();
+    let seed_check = c.seed_check.as_ref().map(|k| {
+        serde_json::json!({
+            "drawn_receivers_hemicube_over_hemisphere": k.drawn_ratio,
+            "readback_pixels_per_shot": {
+                "hemisphere": k.readback_pixels_per_shot.0,
+                "hemicube": k.readback_pixels_per_shot.1,
+            },
+            "renderer_us_per_receiver": {
+                "hemisphere": k.renderer_us_per_receiver.0,
+                "hemicube": k.renderer_us_per_receiver.1,
+            },
+        })
+    });
     serde_json::json!({
         "options": options,
+        "seed_assumptions": seed_check,
         "config": c.config,
         "config_hash": c.config_hash,
         "scene": c.scene,

@@ -13,7 +13,7 @@ use pxpl5_machine::RunStats;
 use crate::accuracy::Convergence;
 use crate::experiment::{MethodRun, bottleneck, phase_times};
 use crate::seed::{SeedEstimate, seed_estimate};
-use crate::shot::{CullCounts, Method};
+use crate::shot::{CullCounts, FfOptions, Method, View, views};
 
 /// The seed report's claim for the hemicube / hemisphere time ratio.
 pub const SEED_RATIO: f64 = 5.0;
@@ -35,6 +35,49 @@ pub struct Comparison {
     pub shooters_at_once: usize,
     /// One summary per method, in the order run.
     pub methods: Vec<MethodSummary>,
+    /// The seed's assumptions against what the machine did, when both methods ran.
+    pub seed_check: Option<SeedCheck>,
+}
+
+/// The assumptions behind the seed's estimate ([`crate::seed`]), each set against what the
+/// simulated machine did in this comparison.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SeedCheck {
+    /// Receivers drawn per shot, hemicube over hemisphere. The seed: 5 (five broadcasts of every
+    /// patch against one); the program sends a receiver only to the faces it may touch.
+    pub drawn_ratio: f64,
+    /// ID pixels read back per shot, (hemisphere, hemicube). The seed as written: one 128 x 128
+    /// readback per run, whatever the number of shots.
+    pub readback_pixels_per_shot: (u64, u64),
+    /// Renderer microseconds per drawn receiver, (hemisphere, hemicube). The seed: 1 us for
+    /// both (10^6 polygons per second), a hemisphere edge as cheap as a hemicube edge.
+    pub renderer_us_per_receiver: (f64, f64),
+}
+
+impl SeedCheck {
+    fn new(
+        cfg: &MachineConfig,
+        resolution: u32,
+        sphere: &MethodSummary,
+        cube: &MethodSummary,
+    ) -> Option<SeedCheck> {
+        let per_shot = |m: &MethodSummary| m.culls.drawn as f64 / m.shots.max(1) as f64;
+        let pixels = |method| -> Option<u64> {
+            let opts = FfOptions {
+                method,
+                resolution,
+                ..FfOptions::default()
+            };
+            let views = views(&opts, &cfg.renderer).ok()?;
+            Some(views.iter().map(View::pixels).sum())
+        };
+        let us = |m: &MethodSummary| 1e6 * m.renderer_busy_s / (m.culls.drawn.max(1) as f64);
+        Some(SeedCheck {
+            drawn_ratio: per_shot(cube) / per_shot(sphere),
+            readback_pixels_per_shot: (pixels(Method::Hemisphere)?, pixels(Method::Hemicube)?),
+            renderer_us_per_receiver: (us(sphere), us(cube)),
+        })
+    }
 }
 
 /// One method's measured figures beside the seed's estimate.
@@ -122,6 +165,14 @@ impl Comparison {
         (resolution, shooters_at_once): (u32, usize),
         runs: &[MethodRun],
     ) -> Comparison {
+        let methods: Vec<MethodSummary> = runs
+            .iter()
+            .map(|r| MethodSummary::new(cfg, patches, r))
+            .collect();
+        let find = |m: Method| methods.iter().find(|s| s.method == m);
+        let seed_check = find(Method::Hemisphere)
+            .zip(find(Method::Hemicube))
+            .and_then(|(s, c)| SeedCheck::new(cfg, resolution, s, c));
         Comparison {
             config: cfg.name.clone(),
             config_hash: pxpl5_config::config_hash(cfg),
@@ -130,10 +181,8 @@ impl Comparison {
             patch_size,
             resolution,
             shooters_at_once,
-            methods: runs
-                .iter()
-                .map(|r| MethodSummary::new(cfg, patches, r))
-                .collect(),
+            methods,
+            seed_check,
         }
     }
 

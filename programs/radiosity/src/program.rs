@@ -207,6 +207,7 @@ impl Program for FormFactorProgram {
 }
 
 fn add_culls(a: &mut CullCounts, b: &CullCounts) {
+    a.drawn += b.drawn;
     a.back_facing += b.back_facing;
     a.below_horizon += b.below_horizon;
     a.coplanar += b.coplanar;

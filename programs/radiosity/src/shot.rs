@@ -96,7 +96,7 @@ pub struct Receiver {
 
 /// One view: where it is drawn and how its pixels weigh.
 #[derive(Clone, Debug)]
-pub(crate) struct View {
+pub struct View {
     /// Which of the shot's shooters it belongs to.
     shooter: usize,
     /// Its place among one shooter's views: the tile of the disk (row-major) or the face.
@@ -123,9 +123,11 @@ pub(crate) enum ViewKind {
     },
 }
 
-/// Counts of what the GPs culled, per reason.
+/// Counts of what the GPs culled, per reason, and of the receivers they drew (each receiver in
+/// each view counts once).
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct CullCounts {
+    pub drawn: u64,
     pub back_facing: u64,
     pub below_horizon: u64,
     pub coplanar: u64,
@@ -149,6 +151,11 @@ impl CullCounts {
 }
 
 impl View {
+    /// Pixels the view reads back: its width x rows.
+    pub fn pixels(&self) -> u64 {
+        u64::from(self.width) * u64::from(self.rows)
+    }
+
     /// Pixels across the view's disk or face.
     fn n(&self) -> u32 {
         match self.kind {
@@ -800,6 +807,7 @@ impl Draw<'_> {
                 .await;
             match drawn {
                 Ok(cmds) => {
+                    culls.drawn += 1;
                     if d.batch.push(gp, cmds).await {
                         return Step::Sent;
                     }
