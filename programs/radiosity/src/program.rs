@@ -362,8 +362,18 @@ impl Record for Pick {
 
 /// The frame scale of a shot from patch `i`: the scene's `size`, or less if another patch's plane
 /// passes so near patch i's centre that depth would leave its field ([`shot_scale`]). GP 0 knows
-/// every patch's plane (the scene is every GP's input) and charges one clip test per patch.
-fn pick_scale(patches: &[Patch], i: usize, size: f64, cost: &mut Cost) -> f64 {
+/// every patch's plane (the scene is every GP's input), charges one clip test per patch the first
+/// time patch i shoots, and keeps the result in `known` (a patch shoots several times).
+fn pick_scale(
+    patches: &[Patch],
+    i: usize,
+    size: f64,
+    known: &mut BTreeMap<usize, f64>,
+    cost: &mut Cost,
+) -> f64 {
+    if let Some(&s) = known.get(&i) {
+        return s;
+    }
     cost.add(Op::ClipTest, patches.len() as u64);
     let c = patches[i].centre;
     let planes = patches
@@ -371,7 +381,9 @@ fn pick_scale(patches: &[Patch], i: usize, size: f64, cost: &mut Cost) -> f64 {
         .enumerate()
         .filter(|&(j, _)| j != i)
         .map(|(_, p)| p.normal.dot(c - p.centre).abs());
-    shot_scale(size, nearest_beyond(planes, size))
+    let s = shot_scale(size, nearest_beyond(planes, size));
+    known.insert(i, s);
+    s
 }
 
 /// What one GP knows of the solution: the radiosity and unshot radiosity of the patches it owns
@@ -447,6 +459,8 @@ impl Program for RadiosityProgram {
             // Shots taken so far: every GP counts the same picks.
             let mut taken = 0usize;
             let mut batches = 0usize;
+            // GP 0's frame scale of each patch that has shot ([`pick_scale`]).
+            let mut scales = BTreeMap::new();
             while taken < shots {
                 let batch = at_once.min(shots - taken);
                 let _shot = tracing::debug_span!("shot", gp = g, first = taken).entered();
@@ -464,7 +478,8 @@ impl Program for RadiosityProgram {
                     threshold,
                     scale,
                 };
-                let (picks, reached) = select(&gp, &patches, &owned, &mine, limits, stop).await;
+                let (picks, reached) =
+                    select(&gp, &patches, &owned, &mine, limits, &mut scales, stop).await;
                 if picks.is_empty() {
                     mine.converged = g == 0 && !reached;
                     mine.target_reached = g == 0 && reached;
@@ -564,6 +579,7 @@ async fn select(
     owned: &[usize],
     mine: &GpSolution,
     limits: Limits,
+    scales: &mut BTreeMap<usize, f64>,
     stop: impl Fn() -> bool,
 ) -> (Vec<Pick>, bool) {
     let Limits {
@@ -608,7 +624,7 @@ async fn select(
                 .map(|c| Pick {
                     patch: c.patch,
                     unshot: c.unshot,
-                    scale: pick_scale(patches, c.patch, scale, cost),
+                    scale: pick_scale(patches, c.patch, scale, scales, cost),
                 })
                 .collect()
         })
