@@ -232,6 +232,7 @@ pub fn hemisphere_polygon(
     let centroid = verts.iter().fold(DVec3::ZERO, |a, &v| a + v) * (1.0 / m as f64);
     let (normal, d) = receiver_plane(verts)?;
     let (k, mo) = Grid::new(n).affine();
+    let rim_w = rim_sample_w(n as usize);
     let sign = |q: [f64; 6]| {
         quantise_for_sign(substitute_affine(q, k, mo), format).ok_or(Cull::Unrepresentable)
     };
@@ -271,7 +272,9 @@ pub fn hemisphere_polygon(
                     pl = -pl;
                 }
                 let [a, b, c] = pl.to_array();
-                push_sign(&mut out, [a, b, 0.0, 0.0, 0.0, 0.0], f.pos)?;
+                // L + c w_rim: directions below the rim's sample elevation are tested at it
+                // ([`rim_sample_w`]); above it the rule is exact, as with L alone.
+                push_sign(&mut out, [a, b, c * rim_w, 0.0, 0.0, 0.0], f.pos)?;
                 if c == 0.0 {
                     out.push(and_enable(f.pos));
                     continue;
@@ -518,6 +521,58 @@ pub fn w_table(n: u32, origin: (u32, u32), width: u32, rows: u32) -> Vec<u64> {
 /// to the edge's line L >= 0 (Q > 0 there).
 pub fn rim_radius(n: usize) -> f64 {
     1.0 + std::f64::consts::SQRT_2 / n as f64
+}
+
+thread_local! {
+    /// [`rim_sample_w`] per n, computed once per host thread (64 x 64 samples per rim pixel).
+    static RIM_W: std::cell::RefCell<std::collections::BTreeMap<usize, f64>> =
+        const { std::cell::RefCell::new(std::collections::BTreeMap::new()) };
+}
+
+/// The height w = sqrt(1 - u^2 - v^2) at which the rim of a hemisphere of `n` pixels across is
+/// sampled: the mean of w, weighted by area (the Nusselt analogue's measure), over the parts
+/// inside the unit circle of the view's pixels whose centre lies outside it.
+///
+/// Such a pixel weighs its part inside the circle ([`hemisphere_delta_ff`]), directions from the
+/// horizon up to a few degrees, but its centre has no direction: there the edge tests reduce to
+/// the edge's line L = a u + b v >= 0, the horizon at the pixel's azimuth, so a patch at 1-4
+/// degrees of elevation lost a third of its form factor and a strip on the horizon took the
+/// whole rim. Testing L + c w_rim instead (c the edge plane's z) moves every direction lower than
+/// w_rim up to it and leaves the others exact: the rim then samples the elevation its weight
+/// stands for, on average. What is left is the spread of elevations within one rim pixel
+/// (tests/rim.rs measures it).
+pub fn rim_sample_w(n: usize) -> f64 {
+    if let Some(w) = RIM_W.with(|m| m.borrow().get(&n).copied()) {
+        return w;
+    }
+    let grid = Grid::new(n as u32);
+    let h = grid.pixel();
+    let k = 64;
+    let (mut sum_w, mut count) = (0.0, 0u64);
+    for t in 0..n as u32 {
+        for s in 0..n as u32 {
+            let (u, v) = (grid.centre(s), grid.centre(t));
+            let r2 = u * u + v * v;
+            if r2 <= 1.0 || r2 > rim_radius(n).powi(2) {
+                continue;
+            }
+            let (x0, y0) = (grid.edge(s), grid.edge(t));
+            for j in 0..k {
+                for i in 0..k {
+                    let x = x0 + (f64::from(i) + 0.5) * h / f64::from(k);
+                    let y = y0 + (f64::from(j) + 0.5) * h / f64::from(k);
+                    let w2 = 1.0 - x * x - y * y;
+                    if w2 >= 0.0 {
+                        sum_w += w2.sqrt();
+                        count += 1;
+                    }
+                }
+            }
+        }
+    }
+    let w = if count > 0 { sum_w / count as f64 } else { 0.0 };
+    RIM_W.with(|m| m.borrow_mut().insert(n, w));
+    w
 }
 
 /// Delta form factors of a hemisphere of `n` pixels across, row-major, normalised to sum 1 over
