@@ -10,7 +10,7 @@
 use std::collections::BTreeMap;
 use std::fmt::Write;
 
-use pxpl5_machine::{GpStats, PhaseSpan, RendererNodeStats, RunStats, Unit};
+use pxpl5_machine::{GpStats, PathPart, PhaseSpan, RendererNodeStats, RunStats, Unit};
 use serde_json::Value;
 
 /// Column widths (characters, right-aligned) wide enough for every shipped run, so that a changed
@@ -59,6 +59,7 @@ pub fn text(
         ring,
         phases,
         frame_writes,
+        critical_path,
     } = stats;
     let mut out = String::new();
     writeln!(
@@ -130,6 +131,17 @@ pub fn text(
                 (PS, gp_time.0.to_string()),
             ],
         );
+    }
+
+    out += "\n";
+    row(&mut out, 34, "critical path", &[h(PS, "ps")]);
+    for p in critical_path {
+        let PathPart {
+            resource: _,
+            activity,
+            time,
+        } = p;
+        row(&mut out, 34, activity, &[(PS, time.0.to_string())]);
     }
 
     out += "\n";

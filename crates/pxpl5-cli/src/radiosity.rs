@@ -13,7 +13,7 @@ use clap::Args;
 use pxpl5_geom::DVec3;
 use pxpl5_geom::convex::Corner;
 use pxpl5_geom::polygon::{self, Problem};
-use pxpl5_machine::{RunOptions, RunStats};
+use pxpl5_machine::{Resource, RunOptions, RunStats};
 use std::rc::Rc;
 
 use pxpl5_radiosity::accuracy::Reference;
@@ -533,7 +533,20 @@ fn table(c: &Comparison, host_seconds: &[f64]) -> String {
         "Renderer utilisation",
         each(&|m| pct(m.renderer_utilisation)),
     );
-    t += &row("busiest GP activity", each(&|m| m.bottleneck.clone()));
+    for resource in [Resource::Gp, Resource::Ring, Resource::Renderer] {
+        t += &row(
+            &format!("critical path: {}", resource.name()),
+            each(&|m| {
+                let held = m
+                    .stats
+                    .critical_resources()
+                    .iter()
+                    .find(|(r, _)| *r == resource)
+                    .map_or(0, |(_, t)| t.0);
+                pct(held as f64 / m.stats.end.0.max(1) as f64)
+            }),
+        );
+    }
     t += &row(
         "seed's estimate per shot (ms)",
         each(&|m| format!("{:.3}", m.seed.as_written * 1e3 / m.shots.max(1) as f64)),
@@ -561,6 +574,10 @@ fn table(c: &Comparison, host_seconds: &[f64]) -> String {
             t += &format!("; time to target: {r:.2}");
         }
         t += "\n";
+    }
+    t += "\n";
+    for m in &c.methods {
+        t += &format!("{} bottleneck: {}\n", m.method.name(), m.bottleneck);
     }
     if let Some(k) = &c.seed_check {
         t += &format!(

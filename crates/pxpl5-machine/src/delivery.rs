@@ -11,6 +11,9 @@ use std::collections::BTreeMap;
 
 use pxpl5_ring::MessageId;
 
+use pxpl5_sim::Tick;
+
+use crate::critical::Profile;
 use crate::gp::{Message, Payload, Unit};
 
 /// A sender and a receiver: the pair between which send order is kept.
@@ -46,6 +49,14 @@ struct InFlight {
     route: Route,
     seq: u64,
     payload: Payload,
+    sent: Sent,
+}
+
+/// When the ring took a message, and the critical path to then (see `critical`).
+#[derive(Clone, Debug)]
+pub(crate) struct Sent {
+    pub at: Tick,
+    pub profile: Profile,
 }
 
 /// A message ready to be handed to its receiver, with the ring's id of it (the receiver frees the
@@ -54,6 +65,7 @@ pub(crate) struct Arrival {
     pub id: MessageId,
     pub to: Unit,
     pub message: Message,
+    pub sent: Sent,
 }
 
 /// The sequence numbers of one route.
@@ -82,7 +94,7 @@ impl Delivery {
     }
 
     /// The ring accepted message `id` of `route`, numbered [`Delivery::next_seq`].
-    pub fn sent(&mut self, id: MessageId, route: Route, payload: Payload) {
+    pub fn sent(&mut self, id: MessageId, route: Route, payload: Payload, sent: Sent) {
         let state = self.routes.entry(route).or_default();
         let seq = state.next_send;
         state.next_send += 1;
@@ -92,6 +104,7 @@ impl Delivery {
                 route,
                 seq,
                 payload,
+                sent,
             },
         );
     }
@@ -102,11 +115,12 @@ impl Delivery {
     ///
     /// # Panics
     /// If the ring delivers a message it was never given: a simulator bug.
-    pub fn arrived(&mut self, id: MessageId, at: pxpl5_sim::Tick) -> (Route, Vec<Arrival>) {
+    pub fn arrived(&mut self, id: MessageId, at: Tick) -> (Route, Vec<Arrival>) {
         let InFlight {
             route,
             seq,
             payload,
+            sent,
         } = self
             .in_flight
             .remove(&id)
@@ -123,6 +137,7 @@ impl Delivery {
                 id,
                 to: route.to,
                 message,
+                sent,
             },
         );
         let mut due = Vec::new();

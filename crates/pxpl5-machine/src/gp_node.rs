@@ -14,6 +14,7 @@ use std::task::{Context, Poll, Waker};
 use pxpl5_config::GpCostTable;
 use pxpl5_sim::{ClockDomain, Cycles, Tick};
 
+use crate::critical::Profile;
 use crate::delivery::Outgoing;
 use crate::gp::{Gp, GpFuture, Message, PhaseMark, Program, Request, Shared};
 use crate::run::RunError;
@@ -23,10 +24,18 @@ use crate::stats::GpStats;
 pub(crate) enum GpStep {
     /// The program finished.
     Finished,
-    /// Busy until this time (then a wake-up is due).
-    Busy(Tick),
+    /// Busy until this time (then a wake-up is due), doing this.
+    Busy(Tick, Busy),
     /// Waiting for a message.
     Waiting,
+}
+
+/// What a busy GP does: the category its time goes to on a critical path.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Busy {
+    Compute,
+    Send,
+    Receive,
 }
 
 /// What a GP is doing.
@@ -52,6 +61,11 @@ pub(crate) struct GpNode {
     finished: Option<Tick>,
     messages_sent: u64,
     messages_received: u64,
+    /// The critical path to this GP's present (see `critical`): when the GP is runnable, up to
+    /// now; when busy, up to the end of its busy time.
+    pub profile: Profile,
+    /// Since when a blocked send has waited for output-queue space.
+    pub blocked_since: Tick,
 }
 
 impl GpNode {
@@ -67,6 +81,8 @@ impl GpNode {
             finished: None,
             messages_sent: 0,
             messages_received: 0,
+            profile: Profile::default(),
+            blocked_since: Tick::ZERO,
         }
     }
 
@@ -91,14 +107,16 @@ impl GpNode {
         }
         let request = self.shared.borrow_mut().request.take();
         Ok(match request {
-            Some(Request::Compute(c)) => GpStep::Busy(self.busy(now, c, None)),
+            Some(Request::Compute(c)) => GpStep::Busy(self.busy(now, c, None), Busy::Compute),
             Some(Request::Send(to, payload)) => {
                 let c = Cycles(costs.message_send);
-                GpStep::Busy(self.busy(now, c, Some(Outgoing::new(to, payload))))
+                let until = self.busy(now, c, Some(Outgoing::new(to, payload)));
+                GpStep::Busy(until, Busy::Send)
             }
             Some(Request::Recv) => {
                 if self.receive() {
-                    GpStep::Busy(self.busy(now, Cycles(costs.message_receive), None))
+                    let until = self.busy(now, Cycles(costs.message_receive), None);
+                    GpStep::Busy(until, Busy::Receive)
                 } else {
                     self.state = GpState::Receiving;
                     GpStep::Waiting
@@ -160,7 +178,10 @@ impl GpNode {
         };
         match then {
             None => self.grant(),
-            Some(out) => self.state = GpState::BlockedSend(out),
+            Some(out) => {
+                self.state = GpState::BlockedSend(out);
+                self.blocked_since = now;
+            }
         }
     }
 

@@ -5,6 +5,7 @@
 //! [`Gp`], [`Program`], [`Unit`], [`Payload`]) and the Renderer command set; stats are simulated
 //! quantities only ([`RunStats`]); traces are recorded by [`Recorder`] in simulated time.
 
+mod critical;
 mod delivery;
 mod frame_buffer;
 pub mod gp;
@@ -24,5 +25,5 @@ pub use gp::{
 pub use machine::Machine;
 pub use record::Recorder;
 pub use run::{RunError, RunOptions, RunResult};
-pub use stats::{GpStats, PhaseSpan, RendererNodeStats, RunStats};
+pub use stats::{GpStats, PathPart, PhaseSpan, RendererNodeStats, Resource, RunStats};
 pub use topology::node_order;

@@ -26,12 +26,13 @@ use pxpl5_config::MachineConfig;
 use pxpl5_ring::{MessageId, NodeId, Ring, RingError};
 use pxpl5_sim::{ClockDomain, ComponentId, EventQueue, Priority, Tick};
 
-use crate::delivery::{Arrival, Delivery, Route};
+use crate::critical::{Cat, Categories, Fixed, PathPart, Profile, Resource};
+use crate::delivery::{Arrival, Delivery, Route, Sent};
 use crate::frame_buffer::FrameBufferImage;
 use crate::gp::{Gp, Payload, Program, Shared, Unit};
-use crate::gp_node::{GpNode, GpState, GpStep};
+use crate::gp_node::{Busy, GpNode, GpState, GpStep};
 use crate::record::Recorder;
-use crate::renderer_node::RendererNode;
+use crate::renderer_node::{RendererNode, Started};
 use crate::run::{RunError, RunOptions, RunResult};
 use crate::stats::{PhaseSpan, RunStats};
 use crate::topology::node_order;
@@ -80,6 +81,12 @@ pub struct Machine {
     options: RunOptions,
     recorder: Recorder,
     program: String,
+    /// The critical path's categories (see `critical`): the fixed ones, each GP's current phase,
+    /// and each Renderer command kind's.
+    categories: Categories,
+    fixed: Fixed,
+    gp_phase: Vec<Cat>,
+    kinds: BTreeMap<&'static str, Cat>,
 }
 
 fn clock(hz: u64, what: &str) -> Result<ClockDomain, RunError> {
@@ -133,7 +140,14 @@ impl Machine {
                 )
             })
             .collect();
+        let mut categories = Categories::new();
+        let fixed = Fixed::new(&mut categories);
+        let computing = categories.get("GP computing", Resource::Gp);
         Ok(Machine {
+            gp_phase: vec![computing; cfg.gp.count as usize],
+            categories,
+            fixed,
+            kinds: BTreeMap::new(),
             cfg: cfg.clone(),
             units,
             positions,
@@ -238,7 +252,14 @@ impl Machine {
                     else {
                         unreachable!("GP {g} was blocked on a send a moment ago")
                     };
-                    self.delivery.sent(taken.0, taken.1, out.payload);
+                    let node = &mut self.gps[g];
+                    node.profile
+                        .add(self.fixed.blocked, self.now - node.blocked_since);
+                    let sent = Sent {
+                        at: self.now,
+                        profile: node.profile.clone(),
+                    };
+                    self.delivery.sent(taken.0, taken.1, out.payload, sent);
                     self.gps[g].sent();
                     progress = true;
                 }
@@ -265,15 +286,22 @@ impl Machine {
         self.flush_phases(g);
         match step? {
             GpStep::Finished => self.recorder.gp_done(g, self.now),
-            GpStep::Busy(until) => self.gp_busy(g, until),
+            GpStep::Busy(until, busy) => self.gp_busy(g, until, busy),
             GpStep::Waiting => {}
         }
         Ok(true)
     }
 
-    /// GP `g` became busy until `until`: record it and schedule its wake-up.
-    fn gp_busy(&mut self, g: u32, until: Tick) {
+    /// GP `g` became busy until `until` doing `busy`: record it, extend its critical path, and
+    /// schedule its wake-up.
+    fn gp_busy(&mut self, g: u32, until: Tick, busy: Busy) {
         self.recorder.gp_busy(g, self.now, until);
+        let cat = match busy {
+            Busy::Compute => self.gp_phase[g as usize],
+            Busy::Send => self.fixed.send,
+            Busy::Receive => self.fixed.receive,
+        };
+        self.gps[g as usize].profile.add(cat, until - self.now);
         self.schedule(until, Event::GpWake(g));
     }
 
@@ -318,18 +346,28 @@ impl Machine {
     /// Give a message to its receiver, and free its input-queue space unless a Renderer still
     /// has to execute it.
     fn hand_over(&mut self, a: Arrival) {
-        let Arrival { id, to, message } = a;
+        let Arrival {
+            id,
+            to,
+            message,
+            sent,
+        } = a;
+        // The critical path to the handing over: the sender's, then the ring's.
+        let arrived = sent.profile.plus(self.fixed.ring, self.now - sent.at);
         match to {
             Unit::Gp(g) => {
                 self.consume(id);
                 let node = &mut self.gps[g as usize];
                 if let Some(until) = node.deliver(self.now, message, &self.cfg.gp.costs) {
-                    self.gp_busy(g, until);
+                    // The GP waited for this message: its path runs through it.
+                    node.profile = arrived;
+                    self.gp_busy(g, until, Busy::Receive);
                 }
             }
             Unit::Renderer(r) => match message.payload {
                 Payload::Commands(cs) => {
-                    if !self.renderers[r as usize].accept(message.from, id, cs) {
+                    let arrival = (self.now, arrived);
+                    if !self.renderers[r as usize].accept(message.from, id, cs, arrival) {
                         self.consume(id);
                     }
                 }
@@ -373,18 +411,57 @@ impl Machine {
             let Some((id, route)) = self.offer(Unit::Renderer(r), to, words)? else {
                 return Ok(false);
             };
-            let out = self.renderers[r as usize]
+            let node = &mut self.renderers[r as usize];
+            let out = node
                 .outgoing_sent()
                 .expect("the outgoing message offered a moment ago");
-            self.delivery.sent(id, route, out.payload);
+            let sent = Sent {
+                at: self.now,
+                profile: node
+                    .profile
+                    .plus(self.fixed.readback_waits, self.now - node.last_end),
+            };
+            self.delivery.sent(id, route, out.payload, sent);
         }
         let Some(started) = self.renderers[r as usize].start_next(self.now)? else {
             return Ok(false);
         };
         self.recorder
             .renderer_command(r, started.kind, started.start, started.end);
+        self.renderer_path(r, &started);
         self.schedule(started.end, Event::RendererDone(r));
         Ok(true)
+    }
+
+    /// Extend Renderer `r`'s critical path by a command that started: from the later of the
+    /// board's previous command and the command's message, through any wait (readback words the
+    /// ring had no room for, or a stall), to the command's end.
+    fn renderer_path(&mut self, r: u32, started: &Started) {
+        let kind = match self.kinds.get(started.kind) {
+            Some(&c) => c,
+            None => {
+                let name = format!("Renderer {}", started.kind);
+                let c = self.categories.get(&name, Resource::Renderer);
+                self.kinds.insert(started.kind, c);
+                c
+            }
+        };
+        let node = &mut self.renderers[r as usize];
+        let wait = if node.last_readback {
+            self.fixed.readback_waits
+        } else {
+            self.fixed.stall
+        };
+        let mut path = match started.arrival.as_deref() {
+            Some((at, profile)) if *at > node.last_end => {
+                profile.plus(self.fixed.stall, started.start - *at)
+            }
+            _ => node.profile.plus(wait, started.start - node.last_end),
+        };
+        path.add(kind, started.end - started.start);
+        node.profile = path;
+        node.last_end = started.end;
+        node.last_readback = started.readback;
     }
 
     fn renderer_done(&mut self, r: u32) {
@@ -393,11 +470,30 @@ impl Machine {
         }
     }
 
-    /// Move GP phase marks to the recorder.
+    /// Move GP phase marks to the recorder; the last is the GP's phase from now on.
     fn flush_phases(&mut self, g: u32) {
         for mark in self.gps[g as usize].take_phase_marks() {
             self.recorder.phase(g, &mark.name, mark.at);
+            let name = format!("GP {}", mark.name);
+            self.gp_phase[g as usize] = self.categories.get(&name, Resource::Gp);
         }
+    }
+
+    /// The run's critical path: the path of the unit that finished last (a GP on a tie).
+    fn critical_path(&self, end: Tick) -> Vec<PathPart> {
+        let gps = self.gps.iter().map(|g| (g.stats(end).finished, &g.profile));
+        let renderers = self.renderers.iter().map(|r| (r.last_end, &r.profile));
+        let last = gps
+            .chain(renderers)
+            .fold(None, |best: Option<(Tick, &Profile)>, (t, p)| match best {
+                Some((bt, _)) if bt >= t => best,
+                _ => Some((t, p)),
+            });
+        last.map_or_else(Vec::new, |(t, p)| {
+            // Every step adds exactly the time it took: the path accounts for all of it.
+            debug_assert_eq!(p.total(), t, "critical path total");
+            self.categories.parts(p)
+        })
     }
 
     fn waiting_report(&self) -> String {
@@ -416,7 +512,9 @@ impl Machine {
         let gps = self.gps.iter().map(|g| g.stats(end)).collect();
         let renderers = self.renderers.iter().map(|r| r.stats(end)).collect();
         let phases: Vec<PhaseSpan> = self.recorder.phase_spans(end);
+        let critical_path = self.critical_path(end);
         let stats = RunStats {
+            critical_path,
             program: self.program.clone(),
             config: self.cfg.name.clone(),
             config_hash: pxpl5_config::config_hash(&self.cfg),

@@ -20,6 +20,7 @@ use pxpl5_renderer::{Board, Command, Fidelity};
 use pxpl5_ring::MessageId;
 use pxpl5_sim::{ClockDomain, Tick};
 
+use crate::critical::Profile;
 use crate::delivery::Outgoing;
 use crate::gp::{Payload, Unit};
 use crate::run::RunError;
@@ -33,6 +34,9 @@ struct QueuedCommand {
     message: MessageId,
     /// Whether it is its message's last command (its completion frees the message).
     last_in_message: bool,
+    /// For its message's first command: when the message was handed over, and the critical
+    /// path to then (see `critical`).
+    arrival: Option<Box<(Tick, Profile)>>,
 }
 
 /// The command executing now: only what its completion needs.
@@ -46,6 +50,10 @@ pub(crate) struct Started {
     pub kind: &'static str,
     pub start: Tick,
     pub end: Tick,
+    /// Its message's arrival, for a message's first command.
+    pub arrival: Option<Box<(Tick, Profile)>>,
+    /// Whether it left readback messages for the ring.
+    pub readback: bool,
 }
 
 pub(crate) struct RendererNode {
@@ -59,6 +67,11 @@ pub(crate) struct RendererNode {
     /// Simulated time spent executing commands.
     busy: Tick,
     commands: u64,
+    /// The critical path to the end of the last command (see `critical`), that end, and whether
+    /// that command left readback messages.
+    pub profile: Profile,
+    pub last_end: Tick,
+    pub last_readback: bool,
 }
 
 impl RendererNode {
@@ -81,6 +94,9 @@ impl RendererNode {
             outbox: VecDeque::new(),
             busy: Tick::ZERO,
             commands: 0,
+            profile: Profile::default(),
+            last_end: Tick::ZERO,
+            last_readback: false,
         }
     }
 
@@ -88,16 +104,25 @@ impl RendererNode {
         self.clock
     }
 
-    /// Queue the commands of message `message` from `from`. Returns false if there were none: then
-    /// no completion will free the message, so the caller frees it now.
-    pub fn accept(&mut self, from: Unit, message: MessageId, commands: Vec<Command>) -> bool {
+    /// Queue the commands of message `message` from `from`, handed over at `arrival` (with the
+    /// critical path to then). Returns false if there were none: then no completion will free the
+    /// message, so the caller frees it now.
+    pub fn accept(
+        &mut self,
+        from: Unit,
+        message: MessageId,
+        commands: Vec<Command>,
+        arrival: (Tick, Profile),
+    ) -> bool {
         let n = commands.len();
+        let mut arrival = Some(Box::new(arrival));
         for (i, command) in commands.into_iter().enumerate() {
             self.queue.push_back(QueuedCommand {
                 command,
                 from,
                 message,
                 last_in_message: i + 1 == n,
+                arrival: arrival.take(),
             });
         }
         n > 0
@@ -143,6 +168,7 @@ impl RendererNode {
         let end = self.clock.to_ticks(executed.end);
         self.busy += end - start;
         self.commands += 1;
+        let readback = executed.readback.is_some();
         if let Some(rb) = executed.readback {
             // The board packed the messages; they travel as they are, and whoever receives one
             // unpacks it.
@@ -165,6 +191,8 @@ impl RendererNode {
             kind: q.command.kind(),
             start,
             end,
+            arrival: q.arrival,
+            readback,
         }))
     }
 

@@ -8,6 +8,8 @@ use pxpl5_ring::RingStats;
 use pxpl5_sim::{Cycles, Tick};
 use serde_json::{Value, json};
 
+pub use crate::critical::{PathPart, Resource};
+
 /// One GP's figures.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct GpStats {
@@ -55,6 +57,10 @@ pub struct RunStats {
     pub ring: RingStats,
     pub phases: Vec<PhaseSpan>,
     pub frame_writes: u64,
+    /// The run's critical path, by what it spent its time on, largest first (see the machine's
+    /// `critical` module): GP phases and message costs, ring transfer, Renderer command kinds,
+    /// waits. It sums to the time the last unit finished.
+    pub critical_path: Vec<PathPart>,
 }
 
 fn pct(part: u64, whole: u64) -> f64 {
@@ -67,6 +73,19 @@ fn pct(part: u64, whole: u64) -> f64 {
 }
 
 impl RunStats {
+    /// The critical path's time per resource, largest first (ties in [`Resource`] order): the
+    /// first is the run's bottleneck, the resource that held the critical path longest.
+    pub fn critical_resources(&self) -> Vec<(Resource, Tick)> {
+        let mut by: std::collections::BTreeMap<Resource, Tick> = Default::default();
+        for p in &self.critical_path {
+            let t = by.entry(p.resource).or_insert(Tick::ZERO);
+            *t += p.time;
+        }
+        let mut out: Vec<(Resource, Tick)> = by.into_iter().collect();
+        out.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
+        out
+    }
+
     /// The stats as JSON (keys in a fixed order; simulated figures only).
     pub fn to_json(&self) -> Value {
         let gps: Vec<Value> = self
@@ -153,12 +172,18 @@ impl RunStats {
                 })
             })
             .collect();
+        let critical: Vec<Value> = self
+            .critical_path
+            .iter()
+            .map(|p| json!({ "resource": p.resource.name(), "activity": p.activity, "ps": p.time.0 }))
+            .collect();
         json!({
             "program": self.program,
             "config": self.config,
             "config_hash": self.config_hash,
             "fidelity": self.fidelity.name(),
             "simulated_ps": self.end.0,
+            "critical_path": critical,
             "phases": phases,
             "gps": gps,
             "renderers": renderers,
@@ -187,6 +212,15 @@ impl RunStats {
             ms(self.end),
             self.fidelity.name(),
         );
+        out += "\ncritical path                          ms   share %\n";
+        for p in &self.critical_path {
+            out += &format!(
+                "{:<34} {:>7.3} {:>9.2}\n",
+                p.activity,
+                ms(p.time),
+                pct(p.time.0, self.end.0)
+            );
+        }
         out += "\nphase                     start ms      end ms     span ms   GP-time ms\n";
         for p in &self.phases {
             out += &format!(

@@ -92,7 +92,7 @@ pub struct MethodSummary {
     /// Simulated seconds per phase over the run, GP time divided by the number of GPs
     /// ([`phase_times`]).
     pub phases: BTreeMap<String, f64>,
-    /// The phase that took the most time ([`bottleneck`]).
+    /// The resource that held the critical path longest ([`bottleneck`]).
     pub bottleneck: String,
     /// The seed's estimate for this run's M and N (N at least 1).
     pub seed: SeedEstimate,
@@ -132,7 +132,7 @@ impl MethodSummary {
             shots,
             simulated_s,
             per_shot_s: simulated_s / shots.max(1) as f64,
-            bottleneck: bottleneck(&phases),
+            bottleneck: bottleneck(&run.stats),
             phases,
             seed: seed_estimate(patches, shots.max(1), run.method),
             renderer_busy_s,

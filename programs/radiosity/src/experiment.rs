@@ -1,7 +1,7 @@
 //! One radiosity experiment on a machine config, as `pxpl5 radiosity` runs it and any other Rust
 //! program can: progressive refinement of a meshed scene with one form-factor method
 //! ([`run`]), the run's measured results ([`MethodRun`]), and the per-phase analysis that names
-//! its bottleneck ([`phase_times`], [`bottleneck`]). Also one point-to-polygon form factor on the
+//! its bottleneck from the critical path ([`phase_times`], [`bottleneck`]). Also one point-to-polygon form factor on the
 //! machine ([`form_factor`], `pxpl5 formfactor`).
 //!
 //! Nothing here reads a host clock or writes a file: callers time the runs and write what they
@@ -151,17 +151,28 @@ pub fn phase_times(stats: &RunStats) -> BTreeMap<String, f64> {
         .collect()
 }
 
-/// The GP activity that took the most time, `waiting` (a GP with nothing to do until a message
-/// arrives) and `done` (the GPs' idle tail) excepted; "none" when there is no other. A tie goes to
-/// the phase whose name comes first.
-pub fn bottleneck(phases: &BTreeMap<String, f64>) -> String {
-    let mut best = ("none", -1.0);
-    for (name, &seconds) in phases {
-        if name != "done" && name != "waiting" && seconds > best.1 {
-            best = (name, seconds);
-        }
-    }
-    best.0.to_string()
+/// The run's bottleneck: the resource (GP, ring or Renderer) that held its critical path longest
+/// (`RunStats::critical_resources`), with its share of the run and the path's largest activity,
+/// e.g. "Renderer (72 % of the critical path; largest: Renderer qee_sign, 43 %)"; "none" for a
+/// run with no path.
+pub fn bottleneck(stats: &RunStats) -> String {
+    let end = stats.end.0.max(1) as f64;
+    let Some(&(resource, time)) = stats.critical_resources().first() else {
+        return "none".to_string();
+    };
+    let share = |t: Tick| 100.0 * t.0 as f64 / end;
+    let top = stats
+        .critical_path
+        .iter()
+        .find(|p| p.resource == resource)
+        .map_or(String::new(), |p| {
+            format!("; largest: {}, {:.0} %", p.activity, share(p.time))
+        });
+    format!(
+        "{} ({:.0} % of the critical path{top})",
+        resource.name(),
+        share(time)
+    )
 }
 
 /// One form factor computed on the machine, with the run that computed it.

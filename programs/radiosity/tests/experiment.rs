@@ -7,7 +7,7 @@ use pxpl5_geom::DVec3;
 use pxpl5_machine::Recorder;
 use pxpl5_radiosity::accuracy::Reference;
 use pxpl5_radiosity::comparison::Comparison;
-use pxpl5_radiosity::experiment::{self, Settings, bottleneck};
+use pxpl5_radiosity::experiment::{self, Settings};
 use pxpl5_radiosity::mesh::mesh;
 use pxpl5_radiosity::seed::seed_estimate;
 use pxpl5_radiosity::shot::{FfOptions, Method};
@@ -41,7 +41,14 @@ fn both_methods_compared_and_pictured() {
         assert_eq!(m.simulated_s, run.stats.end.as_secs_f64());
         assert_eq!(m.per_shot_s, m.simulated_s / 2.0);
         assert_eq!(m.seed, seed_estimate(patches.len(), 2, m.method));
-        assert!(m.phases.contains_key(&m.bottleneck) && m.bottleneck != "done");
+        // The bottleneck is the critical path's largest resource, with its share.
+        let (resource, _) = run.stats.critical_resources()[0];
+        assert!(
+            m.bottleneck.starts_with(resource.name())
+                && m.bottleneck.contains("% of the critical path"),
+            "{}",
+            m.bottleneck
+        );
         // Phases are mean GP time, each GP's from its first phase mark to its own end, so
         // together they cover most of the run and never more.
         let phases: f64 = m.phases.values().sum();
@@ -146,20 +153,6 @@ fn both_methods_converge_to_the_reference_within_one_percent() {
         assert!(m.renderer_utilisation > 0.3 && m.renderer_utilisation <= 1.0);
         assert!(m.gp_busy_s > 0.0 && (m.gps, m.boards) == (16, 4));
     }
-}
-
-#[test]
-fn the_bottleneck_skips_done_and_breaks_ties_by_name() {
-    let phases = |v: &[(&str, f64)]| v.iter().map(|&(k, s)| (k.to_string(), s)).collect();
-    assert_eq!(bottleneck(&phases(&[])), "none");
-    assert_eq!(bottleneck(&phases(&[("done", 9.0)])), "none");
-    let b = bottleneck(&phases(&[
-        ("done", 9.0),
-        ("b", 2.0),
-        ("a", 2.0),
-        ("c", 1.0),
-    ]));
-    assert_eq!(b, "a");
 }
 
 #[test]
