@@ -380,14 +380,15 @@ fn compute_views(opts: &FfOptions, side: u32) -> Result<Vec<View>, ProgramError>
     Ok(out)
 }
 
-/// The radiosity programs' Data message tags. A shot's signals carry their view (and board) in
-/// the tag's upper bits: [`Signal`].
+/// The radiosity programs' Data message tags. A shot's signal carries its view in the tag's
+/// upper bits: [`Signal`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Tags {
-    /// GP 0 to the others: a view's board is prepared, draw it.
-    Go = 1,
-    /// A GP to GP 0: my drawing of a view has executed.
+    /// A GP to the coordinator of a view's board: it had nothing to draw in the view (a GP that
+    /// drew is heard from through its completion probe).
     Done = 2,
+    /// A board's coordinator to GP 0: every GP's drawing of a view has executed.
+    Complete = 3,
     /// Partial form factors to their receivers' owners (or to GP 0).
     Partial = 10,
     /// A GP's candidate shooters, to GP 0.
@@ -402,39 +403,64 @@ impl Tag for Tags {
     }
 }
 
-/// A shot's signal between GPs: [`Tags::Go`] or [`Tags::Done`] for one view (its index among
-/// the shot's views) on one board, all in the Data message's tag (bits 0-7 the kind, 8-31 the
-/// view, 32-62 the board), so a signal is a header-only message.
+/// A shot's signal between GPs, [`Tags::Done`] or [`Tags::Complete`] for one view (its index
+/// among the shot's views), all in the Data message's tag (bits 0-7 the kind, 8-31 the view), so
+/// a signal is a header-only message.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Signal {
     kind: Tags,
     view: usize,
-    board: u32,
 }
 
 /// Views a shot can number in a [`Signal`] or a [`Reply`] tag.
 const MAX_VIEWS: usize = 1 << 24;
-/// Boards a [`Signal`] can name.
-const MAX_BOARDS: u32 = 1 << 31;
 
 impl Tag for Signal {
     fn code(self) -> u64 {
-        self.kind as u64 | (self.view as u64) << 8 | u64::from(self.board) << 32
+        self.kind as u64 | (self.view as u64) << 8
     }
 }
 
 impl Signal {
     fn decode(tag: u64) -> Option<Signal> {
         let kind = match tag & 0xFF {
-            1 => Tags::Go,
             2 => Tags::Done,
+            3 => Tags::Complete,
             _ => return None,
         };
-        Some(Signal {
+        (tag >> 32 == 0).then_some(Signal {
             kind,
             view: ((tag >> 8) & 0xFF_FFFF) as usize,
-            board: ((tag >> 32) & 0x7FFF_FFFF) as u32,
         })
+    }
+}
+
+/// The GP that hears, for the views drawn on `board`, from every GP when its drawing has executed,
+/// and tells GP 0 once all have: the work of gathering spread over the GPs.
+fn coordinator_of(board: u32, gps: u32) -> u32 {
+    board % gps
+}
+
+/// What one GP gathers as the coordinator of some boards' views: per view, how many GPs' drawing
+/// has executed; and how many views of its boards it has seen announced and seen complete.
+#[derive(Default)]
+struct Gather {
+    heard: BTreeMap<usize, u32>,
+    announced: usize,
+    complete: usize,
+}
+
+impl Gather {
+    /// One more GP's drawing of `view` has executed; whether every GP's now has.
+    fn heard(&mut self, view: usize, gps: u32) -> bool {
+        let n = self.heard.entry(view).or_default();
+        *n += 1;
+        if *n < gps {
+            return false;
+        }
+        self.heard.remove(&view);
+        self.complete += 1;
+        true
     }
 }
 
@@ -541,11 +567,6 @@ pub async fn shoot(
         gps: gp.gp_count(),
     };
     let renderers = gp.renderer_count();
-    if renderers >= MAX_BOARDS {
-        return Err(ProgramError(format!(
-            "{renderers} Renderers: a shot's signals name at most {MAX_BOARDS}"
-        )));
-    }
     let views = shot_views(opts, shooters.len(), rc)?;
     gp.phase("transform");
     let local = transform_receivers(gp, shooters, receivers).await;
@@ -570,7 +591,11 @@ pub async fn shoot(
     // turns to the next, so that its commands reach every board it has work for instead of
     // queueing behind one slow board.
     let mut drawing: VecDeque<Drawing> = VecDeque::new();
-    while !left.finished() || coordinator.as_ref().is_some_and(|c| !c.finished()) {
+    let mut gather = Gather::default();
+    while !left.finished()
+        || gather.complete < gather.announced
+        || coordinator.as_ref().is_some_and(|c| !c.finished())
+    {
         // Take every event that has arrived; wait for one only with nothing to draw.
         let m = if drawing.is_empty() {
             gp.phase("waiting");
@@ -589,46 +614,40 @@ pub async fn shoot(
                 Step::Nothing => {
                     left.draws -= 1;
                     // Nothing of this GP's is in the view: nothing to wait for.
-                    let (view, board) = (d.view, d.batch.renderer());
-                    match coordinator.as_mut() {
-                        Some(c) => c.done(gp, &s, &views, view, opts, w_tables).await,
-                        None => {
-                            gp.signal(
-                                0,
-                                Signal {
-                                    kind: Tags::Done,
-                                    view,
-                                    board,
-                                },
-                            )
-                            .await
+                    let (view, to) = (d.view, coordinator_of(d.batch.renderer(), s.gps));
+                    if to == g {
+                        if gather.heard(view, s.gps) {
+                            let c = coordinator.as_mut();
+                            report_complete(gp, c, view, &s, &views, opts, w_tables).await;
                         }
+                    } else {
+                        let done = Signal {
+                            kind: Tags::Done,
+                            view,
+                        };
+                        gp.signal(to, done).await;
                     }
                 }
             }
             continue;
         };
         match Event::of(&m, views.len())? {
+            // The board is prepared: its probe tells every GP, GP 0 too.
             Event::Ready { view, board } => {
-                // GP 0 only: the board is prepared; everyone draws, GP 0 too.
-                gp.phase("renderer setup");
-                if coordinator.is_none() {
-                    return Err(unexpected(g, &m));
-                }
-                for other in 1..s.gps {
-                    let go = Signal {
-                        kind: Tags::Go,
-                        view,
-                        board,
-                    };
-                    gp.signal(other, go).await;
+                if coordinator_of(board, s.gps) == g {
+                    gather.announced += 1;
                 }
                 drawing.push_back(Drawing::new(view, board));
             }
-            Event::Go { view, board } => drawing.push_back(Drawing::new(view, board)),
             Event::Drawn { view } | Event::Done { view } => {
+                if gather.heard(view, s.gps) {
+                    let c = coordinator.as_mut();
+                    report_complete(gp, c, view, &s, &views, opts, w_tables).await;
+                }
+            }
+            Event::Complete { view } => {
                 let c = coordinator.as_mut().ok_or_else(|| unexpected(g, &m))?;
-                c.done(gp, &s, &views, view, opts, w_tables).await;
+                c.complete(gp, &s, &views, view, opts, w_tables).await;
             }
             Event::Band { view } => {
                 gp.phase("accumulate");
@@ -649,6 +668,26 @@ pub async fn shoot(
     Ok(partial)
 }
 
+/// Every GP's drawing of `view` has executed, as this GP, its board's coordinator, has heard:
+/// GP 0 orders the readback itself ([`Coordinator::complete`]); another GP tells GP 0.
+async fn report_complete(
+    gp: &Gp,
+    coordinator: Option<&mut Coordinator>,
+    view: usize,
+    s: &Setting,
+    views: &[View],
+    opts: &FfOptions,
+    w_tables: &mut WTables,
+) {
+    match coordinator {
+        Some(c) => c.complete(gp, s, views, view, opts, w_tables).await,
+        None => {
+            let kind = Tags::Complete;
+            gp.signal(0, Signal { kind, view }).await;
+        }
+    }
+}
+
 /// A shot's messages: readbacks, and the [`Signal`]s.
 fn is_shot_message(m: &Message) -> bool {
     match m.payload {
@@ -660,14 +699,14 @@ fn is_shot_message(m: &Message) -> bool {
 
 /// A shot message, decoded.
 enum Event {
-    /// (GP 0) View `view`'s set-up on `board` has executed.
+    /// View `view`'s set-up on `board` has executed: draw it.
     Ready { view: usize, board: u32 },
-    /// Draw view `view` on `board`.
-    Go { view: usize, board: u32 },
-    /// (GP 0) A GP's drawing of `view` has executed: its completion probe.
+    /// (A coordinator) A GP's drawing of `view` has executed: its completion probe.
     Drawn { view: usize },
-    /// (GP 0) A GP that had nothing to draw in `view` says so.
+    /// (A coordinator) A GP that had nothing to draw in `view` says so.
     Done { view: usize },
+    /// (GP 0) Every GP's drawing of `view` has executed.
+    Complete { view: usize },
     /// Part of this GP's band of `view`'s IDs.
     Band { view: usize },
 }
@@ -687,10 +726,7 @@ impl Event {
             (Payload::Data { tag, .. }, Unit::Gp(_)) => {
                 let sig = Signal::decode(*tag).ok_or_else(bad)?;
                 match sig.kind {
-                    Tags::Go => Event::Go {
-                        view: sig.view,
-                        board: sig.board,
-                    },
+                    Tags::Complete => Event::Complete { view: sig.view },
                     _ => Event::Done { view: sig.view },
                 }
             }
@@ -698,9 +734,9 @@ impl Event {
         };
         match event {
             Event::Ready { view, .. }
-            | Event::Go { view, .. }
             | Event::Drawn { view }
             | Event::Done { view }
+            | Event::Complete { view }
             | Event::Band { view }
                 if view < views =>
             {
@@ -820,8 +856,10 @@ impl Draw<'_> {
         if !batch.finish(gp).await {
             return Step::Nothing;
         }
-        // The probe answers GP 0 directly: its arrival there says this GP's drawing is done.
-        let probe = completion_probe(&s.fields, 0, Reply::Drawn.tag(d.view));
+        // The probe answers the board's coordinator directly: its arrival there says this GP's
+        // drawing has executed.
+        let to = coordinator_of(board, s.gps);
+        let probe = completion_probe(&s.fields, to, Reply::Drawn.tag(d.view));
         gp.send_commands(board, vec![probe]).await;
         Step::Probed
     }
@@ -832,8 +870,6 @@ impl Draw<'_> {
 struct Coordinator {
     /// The next view to place.
     next: usize,
-    /// GPs whose drawing of each view has executed.
-    done: Vec<u32>,
     /// The board of each placed view.
     board: Vec<Option<u32>>,
     /// Views read back.
@@ -846,7 +882,6 @@ impl Coordinator {
     fn new(views: usize, boards: u32, gps: u32) -> Coordinator {
         Coordinator {
             next: 0,
-            done: vec![0; views],
             board: vec![None; views],
             read: 0,
             boards,
@@ -855,7 +890,7 @@ impl Coordinator {
     }
 
     fn finished(&self) -> bool {
-        self.read == self.done.len()
+        self.read == self.board.len()
     }
 
     /// Place the first views, one per board.
@@ -898,13 +933,24 @@ impl Coordinator {
         {
             write_w_table(gp, s, v, board, opts.resolution).await;
         }
-        let probe = completion_probe(&s.fields, 0, Reply::Ready.tag(view));
-        gp.send_commands(board, vec![probe]).await;
+        // One probe per GP: the board itself tells everyone the view is ready (a readback of
+        // one pixel costs the board a few cycles; GP 0 telling each GP would cost it a message
+        // send per GP per view, on the critical path of a shot with many views).
+        let mut probes = CommandBatch::new(board);
+        for g in 0..self.gps {
+            probes
+                .push(
+                    gp,
+                    vec![completion_probe(&s.fields, g, Reply::Ready.tag(view))],
+                )
+                .await;
+        }
+        probes.finish(gp).await;
     }
 
-    /// One more GP's drawing of `view` has executed; once every GP's has, order the view's ID
-    /// readback in row bands, one per GP, and place the next view on its board.
-    async fn done(
+    /// Every GP's drawing of `view` has executed: order the view's ID readback in row bands,
+    /// one per GP, and place the next view on its board.
+    async fn complete(
         &mut self,
         gp: &Gp,
         s: &Setting,
@@ -913,10 +959,6 @@ impl Coordinator {
         opts: &FfOptions,
         w_tables: &mut WTables,
     ) {
-        self.done[view] += 1;
-        if self.done[view] < self.gps {
-            return;
-        }
         gp.phase("renderer setup");
         let Some(board) = self.board[view] else {
             return;
