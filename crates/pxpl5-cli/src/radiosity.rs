@@ -219,7 +219,10 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
             let (picture, _) = timed(
                 "polygons",
                 RunOptions::default().fidelity,
-                || picture::render(&cfg, &patches, &last.solution, camera.clone()),
+                || {
+                    let options = RunOptions::default();
+                    picture::render(&cfg, &patches, &last.solution, camera.clone(), options)
+                },
                 |r| r.stats.end,
             )?;
             Some(png_bytes(&picture.frame)?)
@@ -670,6 +673,7 @@ pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
                         given.unit_normal,
                         given.polygon.clone(),
                         options,
+                        RunOptions::default(),
                     )
                 },
                 |r| r.stats.end,

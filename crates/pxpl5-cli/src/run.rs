@@ -77,7 +77,11 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
     output::distinct(dests.iter().chain(traces.iter()))?;
 
     let program = Polygons::new(scene);
-    let options = RunOptions { fidelity, max_time };
+    let options = RunOptions {
+        fidelity,
+        max_time,
+        monitor: None,
+    };
     let (result, host_seconds) = simulate(&cfg, &program, options, recorder)?;
 
     let stats = &result.stats;

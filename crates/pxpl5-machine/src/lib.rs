@@ -3,13 +3,15 @@
 //!
 //! This is the only crate that knows the topology. Programs see only the GP runtime ([`gp`]:
 //! [`Gp`], [`Program`], [`Unit`], [`Payload`]) and the Renderer command set; stats are simulated
-//! quantities only ([`RunStats`]); traces are recorded by [`Recorder`] in simulated time.
+//! quantities only ([`RunStats`]); traces are recorded by [`Recorder`] in simulated time. A host
+//! watches a run, and may stop it, through its [`Monitor`].
 
 mod delivery;
 mod frame_buffer;
 pub mod gp;
 mod gp_node;
 mod machine;
+mod monitor;
 mod record;
 mod renderer_node;
 mod run;
@@ -22,6 +24,7 @@ pub use gp::{
     ProgramError, Record, Tag, Unit,
 };
 pub use machine::Machine;
+pub use monitor::{CHECK_EVERY, Monitor, Stop};
 pub use record::Recorder;
 pub use run::{RunError, RunOptions, RunResult};
 pub use stats::{GpStats, PhaseSpan, RendererNodeStats, RunStats};

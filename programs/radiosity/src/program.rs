@@ -7,14 +7,17 @@
 //!   unshot power to GP 0, which picks the shooter and tells everyone; the GPs compute the
 //!   shot's form factors together ([`crate::shot::shoot`]); partial sums go to the receivers'
 //!   owners, which update radiosity and unshot radiosity (reciprocity F_ji = F_ij A_i / A_j,
-//!   clamped to 1, clamps counted). Everything is charged to the machine.
+//!   clamped to 1, clamps counted). Everything is charged to the machine. GP 0 tells the run's
+//!   [`Monitor`] the shots taken, and ends the run between shots when the host asks it to stop
+//!   soon (a Ctrl-C), marking the solution [`Solution::stopped`].
 
 use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::rc::Rc;
+use std::sync::Arc;
 
 use pxpl5_geom::DVec3;
-use pxpl5_machine::{Gp, GpFuture, Op, Program, ProgramError, Record};
+use pxpl5_machine::{Gp, GpFuture, Monitor, Op, Program, ProgramError, Record, Stop};
 use pxpl5_sim::Tick;
 
 use crate::mesh::Patch;
@@ -206,6 +209,9 @@ pub struct Solution {
     pub culls: CullCounts,
     /// Whether the convergence threshold stopped the run.
     pub converged: bool,
+    /// Whether the host's request to stop soon ended the run before its shots (the solution is
+    /// then partial: the shots taken, each complete).
+    pub stopped: bool,
 }
 
 /// Progressive refinement on the machine.
@@ -226,6 +232,10 @@ pub struct RadiosityProgram {
     pub item_shots: Vec<usize>,
     /// The kept item buffers: (shot, its views).
     pub item_buffers: Rc<RefCell<Vec<(usize, ItemBuffers)>>>,
+    /// The run's monitor (the same as the machine's): GP 0 publishes the shots taken there and
+    /// reads whether to stop soon. Host-side only: no simulated result depends on it unless a
+    /// stop is asked.
+    pub monitor: Option<Arc<Monitor>>,
 }
 
 impl RadiosityProgram {
@@ -246,6 +256,7 @@ impl RadiosityProgram {
             shooters_at_once: 1,
             item_shots: Vec::new(),
             item_buffers: Rc::default(),
+            monitor: None,
         }
     }
 }
@@ -287,6 +298,7 @@ struct GpSolution {
     shots: Vec<(usize, Tick)>,
     reciprocity_clamps: u64,
     converged: bool,
+    stopped: bool,
 }
 
 impl GpSolution {
@@ -299,6 +311,7 @@ impl GpSolution {
         out.shots.extend(self.shots);
         out.reciprocity_clamps += self.reciprocity_clamps;
         out.converged |= self.converged;
+        out.stopped |= self.stopped;
         add_culls(&mut out.culls, culls);
     }
 }
@@ -316,6 +329,7 @@ impl Program for RadiosityProgram {
         let item_shots = self.item_shots.clone();
         let item_buffers = self.item_buffers.clone();
         let at_once = self.shooters_at_once.max(1);
+        let monitor = self.monitor.clone().filter(|_| gp.index() == 0);
         Box::pin(async move {
             let (g, gps) = (gp.index() as usize, gp.gp_count() as usize);
             if patches.len() >= u16::MAX as usize {
@@ -340,6 +354,7 @@ impl Program for RadiosityProgram {
                 shots: Vec::new(),
                 reciprocity_clamps: 0,
                 converged: false,
+                stopped: false,
             };
             let mut culls = CullCounts::default();
             let mut w_tables = WTables::default();
@@ -349,9 +364,17 @@ impl Program for RadiosityProgram {
                 let batch = at_once.min(shots - taken);
                 let _shot = tracing::debug_span!("shot", gp = g, first = taken).entered();
                 gp.phase("select");
-                let picks = select(&gp, &patches, &owned, &mine, batch, emitted, threshold).await;
+                // Asked to stop soon, GP 0 picks no shooter, which ends every GP's loop as
+                // convergence does. Not when asked to stop now: the machine is about to stop
+                // with an error, and the run must not pass for one that ended early.
+                let stop = monitor
+                    .as_ref()
+                    .is_some_and(|m| m.requested() == Stop::Soon);
+                let limit = (!stop).then_some(threshold);
+                let picks = select(&gp, &patches, &owned, &mine, batch, emitted, limit).await;
                 if picks.is_empty() {
-                    mine.converged = g == 0;
+                    mine.converged = g == 0 && !stop;
+                    mine.stopped = stop;
                     break;
                 }
                 let shooters: Vec<Shooter> = picks
@@ -405,6 +428,9 @@ impl Program for RadiosityProgram {
                     mine.shots.extend(picks.iter().map(|p| (p.patch, now)));
                 }
                 taken += picks.len();
+                if let Some(m) = &monitor {
+                    m.set_done(taken as u64);
+                }
             }
             mine.publish(&owned, &culls, &mut output.borrow_mut());
             gp.phase("done");
@@ -415,7 +441,7 @@ impl Program for RadiosityProgram {
 
 /// Shooter selection: every GP proposes its `batch` owned patches of largest unshot power; GP 0
 /// picks the `batch` best overall (none once the largest unshot power is below `threshold` of
-/// `emitted`) and tells everyone. Charged: one radiosity-update operation per owned patch to rank
+/// `emitted`, or when GP 0's `threshold` is `None`: a stop) and tells everyone. Charged: one radiosity-update operation per owned patch to rank
 /// them.
 async fn select(
     gp: &Gp,
@@ -424,7 +450,7 @@ async fn select(
     mine: &GpSolution,
     batch: usize,
     emitted: f64,
-    threshold: f64,
+    threshold: Option<f64>,
 ) -> Vec<Pick> {
     let proposal: Vec<Candidate> = gp
         .work(|cost| {
@@ -451,7 +477,8 @@ async fn select(
     all.extend(gp.recv_records::<Candidate>(Tags::Propose, gps - 1).await);
     all.sort_by(|a, b| b.power.total_cmp(&a.power).then(a.patch.cmp(&b.patch)));
     let best = all.first().map_or(0.0, |c| c.power);
-    let picks: Vec<Pick> = if emitted <= 0.0 || best / emitted < threshold {
+    let none = threshold.is_none_or(|t| emitted <= 0.0 || best / emitted < t);
+    let picks: Vec<Pick> = if none {
         Vec::new()
     } else {
         all.iter()
