@@ -7,8 +7,12 @@
 //! run), `-vvv` trace; `-q` keeps errors only. A span is logged when it closes, with its host
 //! time. `RUST_LOG` takes `tracing_subscriber`'s `EnvFilter` syntax, e.g.
 //! `RUST_LOG=info` or `RUST_LOG=pxpl5_machine=debug`.
+//!
+//! Each log line is written whole, with the progress bar (`watch`), if one is on screen, out of
+//! its way, so that a line never lands inside the bar.
 
 use std::env::VarError;
+use std::io::{self, Write};
 
 use tracing::level_filters::LevelFilter;
 use tracing_subscriber::EnvFilter;
@@ -42,11 +46,37 @@ pub fn init(verbose: u8, quiet: bool) -> Result<(), UserError> {
     };
     tracing_subscriber::fmt()
         .with_env_filter(filter)
-        .with_writer(std::io::stderr)
+        .with_writer(|| LogLine(Vec::new()))
         // Host seconds since the start: wall-clock dates would say nothing about a run.
         .with_timer(fmt::time::uptime())
         // A line when a span closes, with the host time spent in it (a command, a machine run).
         .with_span_events(FmtSpan::CLOSE)
         .init();
     Ok(())
+}
+
+/// One log event, gathered and written to stderr whole when the subscriber drops it, around the
+/// progress bar; a failing stderr is ignored, as for every message.
+struct LogLine(Vec<u8>);
+
+impl Write for LogLine {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.0.extend_from_slice(buf);
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        Ok(())
+    }
+}
+
+impl Drop for LogLine {
+    fn drop(&mut self) {
+        if !self.0.is_empty() {
+            crate::watch::suspend(|| {
+                let mut err = io::stderr().lock();
+                let _ = err.write_all(&self.0).and_then(|()| err.flush());
+            });
+        }
+    }
 }

@@ -5,10 +5,13 @@
 //! fidelity level). With no subcommand it runs `radiosity` with its defaults (the Cornell box, both
 //! methods, on the embedded seed machine), which needs no file.
 //!
-//! Exit codes (`--help` ends with them, [`EXIT_CODES`]): 0 success, also when the reader of
-//! stdout closes it early (see [`output`]); 2 a user's mistake (bad config, bad flag, an output
-//! that cannot be written, stdout included) or a failed simulation, reported with the file, line
-//! or field at fault. The simulator never panics on user input; a panic is a simulator bug.
+//! Exit codes (`--help` ends with them, [`EXIT_CODES`]; [`failure`] says which failure gets
+//! which): 0 success, also when the reader of stdout closes it early (see [`output`]); 1 a
+//! simulation that failed (a deadlock, a limit reached, a program error on the machine), saying
+//! where it was; 2 a user's mistake (bad config, bad flag, an output that cannot be written,
+//! stdout included), naming the file, line, field or option at fault; 130 interrupted (Ctrl-C:
+//! see [`watch`], which also holds the limits, work estimates and progress bars of every run).
+//! The simulator never panics on user input; a panic is a simulator bug.
 //!
 //! Results go to stdout; the simulator's own logs (`-v`, `-q`, `RUST_LOG`: see [`logging`]) and
 //! error messages go to stderr. Every print goes through [`output`].
@@ -16,16 +19,20 @@
 mod bench;
 mod choices;
 mod config_cmd;
+mod failure;
 mod logging;
 mod output;
 mod radiosity;
 mod run;
+mod watch;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+pub use crate::failure::UserError;
+use crate::failure::{EXIT_CODES, Failure};
 use crate::output::errln;
 
 /// A cycle-level simulator of Pixel-Planes 5 (UNC, 1989): Graphics Processors on a token ring,
@@ -112,39 +119,24 @@ enum BenchCommand {
     Renderer(bench::RendererArgs),
 }
 
-/// The exit codes, as `--help` ends with them.
-const EXIT_CODES: &str = "\
-Exit codes:
-  0  success; also when the reader of stdout closes it early (`pxpl5 radiosity | head -1`): the
-     rest of the report is dropped quietly, as ripgrep does, since a reader that stops once it
-     has what it wanted is no failure (files are written before the report, so none is lost)
-  2  a user's mistake: a bad config, scene or flag, an output that cannot be written (a
-     directory where a file is expected, a full disk or device, stdout included), or a
-     simulation that failed (a deadlock, a time limit reached), with the file, line or field at
-     fault";
-
-/// A user's mistake: printed, exit code 2.
-pub struct UserError(pub String);
-
-impl<E: std::fmt::Display> From<E> for UserError {
-    fn from(e: E) -> UserError {
-        UserError(e.to_string())
-    }
-}
-
 fn main() -> ExitCode {
     let result = match Cli::try_parse() {
-        Ok(cli) => logging::init(cli.verbose, cli.quiet).and_then(|()| run_command(cli.command)),
+        Ok(cli) => logging::init(cli.verbose, cli.quiet)
+            .map_err(Failure::from)
+            .and_then(|()| {
+                watch::enable_progress(cli.quiet);
+                run_command(cli.command)
+            }),
         // A usage error, on stderr with exit code 2 (clap ignores a failing stderr).
         Err(e) if e.use_stderr() => e.exit(),
         // --help and --version, on stdout like any report.
-        Err(e) => print_help(&e),
+        Err(e) => print_help(&e).map_err(Failure::from),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
-        Err(UserError(message)) => {
-            errln!("{message}");
-            ExitCode::from(2)
+        Err(failure) => {
+            errln!("{}", failure.message());
+            ExitCode::from(failure.exit_code())
         }
     }
 }
@@ -164,8 +156,10 @@ fn print_help(e: &clap::Error) -> Result<(), UserError> {
 }
 
 /// Run one subcommand inside its span (`config` and `hash` are recorded when the command loads
-/// its machine config: `config_cmd::load`).
-fn run_command(command: Option<Command>) -> Result<(), UserError> {
+/// its machine config: `config_cmd::load`). The commands that simulate catch Ctrl-C
+/// ([`watch::catch_interrupts`]); the others end on it at once, as by default, having nothing to
+/// keep.
+fn run_command(command: Option<Command>) -> Result<(), Failure> {
     let name = command.as_ref().map_or("radiosity", Command::name);
     let span = tracing::info_span!(
         "pxpl5",
@@ -174,11 +168,19 @@ fn run_command(command: Option<Command>) -> Result<(), UserError> {
         hash = tracing::field::Empty
     );
     let _entered = span.enter();
+    if matches!(
+        command,
+        None | Some(Command::Run(_) | Command::Radiosity(_) | Command::Formfactor(_))
+    ) {
+        watch::catch_interrupts();
+    }
     match command {
         None => radiosity::radiosity(&radiosity::RadiosityArgs::defaults()),
-        Some(Command::Config(ConfigCommand::Check { files })) => config_cmd::check(&files),
-        Some(Command::Config(ConfigCommand::Show { file })) => config_cmd::show(file.as_deref()),
-        Some(Command::Bench(BenchCommand::Renderer(args))) => bench::renderer(&args),
+        Some(Command::Config(ConfigCommand::Check { files })) => Ok(config_cmd::check(&files)?),
+        Some(Command::Config(ConfigCommand::Show { file })) => {
+            Ok(config_cmd::show(file.as_deref())?)
+        }
+        Some(Command::Bench(BenchCommand::Renderer(args))) => Ok(bench::renderer(&args)?),
         Some(Command::Run(args)) => run::run(&args),
         Some(Command::Radiosity(args)) => radiosity::radiosity(&args),
         Some(Command::Formfactor(args)) => radiosity::formfactor(&args),

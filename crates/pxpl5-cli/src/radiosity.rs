@@ -6,6 +6,12 @@
 //! seed's estimate, the comparison, pictures) is `pxpl5_radiosity`'s, so that another Rust
 //! program can run it. The command times each run on the host and prints those figures apart;
 //! they never reach a file.
+//!
+//! Every run is watched (`watch`): its work is estimated first; `--time-limit` (simulated) and
+//! `--host-time-limit` stop it with exit code 1, writing nothing. Ctrl-C ends a radiosity run
+//! after the shot under way; the methods not started are skipped, the pictures are drawn from the
+//! shots taken, and everything is written marked partial (`partial` in comparison.json and
+//! comparison.csv, "interrupted after N of M shots" in the report), exit code 130.
 
 use std::path::{Path, PathBuf};
 
@@ -13,7 +19,7 @@ use clap::Args;
 use pxpl5_geom::DVec3;
 use pxpl5_geom::convex::Corner;
 use pxpl5_geom::polygon::{self, Problem};
-use pxpl5_machine::{Resource, RunOptions, RunStats};
+use pxpl5_machine::{Resource, RunOptions, RunStats, Stop};
 use std::rc::Rc;
 
 use pxpl5_radiosity::accuracy::Reference;
@@ -23,12 +29,15 @@ use pxpl5_radiosity::mesh::{Patch, mesh};
 use pxpl5_radiosity::picture;
 use pxpl5_radiosity::scene::RadiosityScene;
 use pxpl5_radiosity::shot::{FfOptions, Method, check_resolution};
+use pxpl5_sim::Tick;
 
 use crate::UserError;
 use crate::choices::{Delta, DepthArg, EdgeRuleArg, FidelityArg, FormFactorMethod, Methods};
 use crate::config_cmd;
+use crate::failure::Failure;
 use crate::output::{self, out, outln};
-use crate::run::{TraceArgs, png_bytes, timed};
+use crate::run::{TraceArgs, machine_units, png_bytes};
+use crate::watch::{self, Estimate, HostLimit, Sim, Watch};
 
 /// Options of `pxpl5 radiosity`.
 #[derive(Args, Clone, Debug)]
@@ -99,6 +108,17 @@ pub struct RadiosityArgs {
     /// DIR/items-METHOD-shotK-VIEW.png, one colour per patch.
     #[arg(long, value_delimiter = ',')]
     pub item_buffers: Vec<usize>,
+    /// Stop with an error (exit code 1) if a run passes this much simulated time (e.g. 1000s,
+    /// 500ms): far beyond the default run's 0.7 s, for fine meshes with many shots.
+    #[arg(long, value_name = "TIME", default_value = "1000s",
+          value_parser = watch::parse_time_limit)]
+    pub time_limit: Tick,
+    /// Stop with an error (exit code 1) once the command has taken this much host time (ms, s,
+    /// min or h; `none`: no limit). Ctrl-C instead ends the run after the shot under way and
+    /// writes what was computed, marked partial (exit code 130).
+    #[arg(long, value_name = "TIME", default_value = watch::DEFAULT_HOST_LIMIT,
+          value_parser = watch::parse_host_limit)]
+    pub host_time_limit: HostLimit,
 }
 
 /// `path` with the method's name before its extension, when more than one method runs.
@@ -142,7 +162,8 @@ impl RadiosityArgs {
             target_error: plan.until_error,
             run: RunOptions {
                 fidelity: self.fidelity.into(),
-                ..Settings::default().run
+                max_time: self.time_limit,
+                monitor: None,
             },
         }
     }
@@ -211,14 +232,15 @@ const SHOTS_PER_PATCH: usize = 10;
 /// `--shots`' default for a scene without a reference: a few shots, enough to time them.
 const SHOTS_WITHOUT_REFERENCE: usize = 6;
 
-/// Run `method`; returns the run and its host seconds. Writes nothing.
+/// Run `method` under `watch`; returns the run and its host seconds. Writes nothing.
 fn run_method(
+    watch: &Watch,
     cfg: &pxpl5_config::MachineConfig,
     patches: &[Patch],
     args: &RadiosityArgs,
     plan: &Plan,
     method: Method,
-) -> Result<(MethodRun, f64), UserError> {
+) -> Result<(MethodRun, f64), Failure> {
     tracing::info!(
         method = %method.name(),
         patches = patches.len(),
@@ -226,13 +248,33 @@ fn run_method(
         "form-factor method starts"
     );
     let recorder = args.traces.recorder()?;
-    let settings = args.settings(method, plan);
-    timed(
-        "radiosity",
-        settings.run.fidelity,
-        || experiment::run(cfg, patches, &settings, recorder),
+    let mut settings = args.settings(method, plan);
+    let name = format!("radiosity ({})", method.name());
+    let sim = Sim {
+        name: &name,
+        shots: Some(plan.shots as u64),
+        interrupt: Stop::Soon,
+    };
+    watch.simulate(
+        &sim,
+        settings.run.clone(),
+        |options| {
+            settings.run = options;
+            experiment::run(cfg, patches, &settings, recorder)
+        },
         |r| r.stats.end,
     )
+}
+
+/// Receiver draws of a radiosity run at most, for its work estimate: patches x shots (each shot
+/// draws every receiver) x methods x the Renderer tiles of a hemisphere view (ceil(resolution /
+/// 128)^2 at 128 x 128 pixels a board).
+fn receiver_draws(patches: usize, shots: usize, args: &RadiosityArgs, methods: usize) -> u64 {
+    let tiles = u64::from(args.resolution.div_ceil(128)).pow(2);
+    (patches as u64)
+        .saturating_mul(shots as u64)
+        .saturating_mul(methods as u64)
+        .saturating_mul(tiles)
 }
 
 /// The files of the output directory written once per run.
@@ -255,7 +297,8 @@ fn method_files(method: Method, reference: bool, camera: bool) -> Vec<String> {
 /// Runs every method, renders the pictures, and only then writes every output, all or nothing
 /// (`output::write_all`), and prints the report: a failure anywhere leaves the output directory
 /// as it was. Every output whose name is known is checked before the first run.
-pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
+pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
+    let watch = Watch::new(args.host_time_limit.clone());
     let cfg = config_cmd::load(args.config.as_deref())?;
     let scene: RadiosityScene = match &args.scene {
         Some(p) => pxpl5_radiosity::scene::load_radiosity_scene(p).map_err(config_cmd::report)?,
@@ -287,14 +330,36 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
         .collect::<Result<Vec<_>, _>>()?;
     output::distinct(files.iter().chain(traces.iter().flat_map(|t| t.iter())))?;
 
-    // Compute everything.
+    watch::estimate(
+        &Estimate {
+            name: "radiosity",
+            units: machine_units(&cfg),
+            work: receiver_draws(patches.len(), plan.shots, args, methods.len()),
+            work_is: "receiver draws at most (patches x shots x methods x tiles per view)",
+            large: watch::large::RECEIVER_DRAWS,
+        },
+        watch.host_limit(),
+    );
+
+    // Compute everything; after a Ctrl-C, no other method starts.
     let mut runs = Vec::new();
     let mut host_seconds = Vec::new();
     for &method in &methods {
-        let (run, host) = run_method(&cfg, &patches, args, &plan, method)?;
+        if watch::interrupts() > 0 {
+            break;
+        }
+        let (run, host) = run_method(&watch, &cfg, &patches, args, &plan, method)?;
         runs.push(run);
         host_seconds.push(host);
     }
+    if runs.is_empty() {
+        return Err(Failure::Interrupted(
+            "radiosity: interrupted before the first shot; nothing written".into(),
+        ));
+    }
+    // Whether the results fall short of those asked: a run stopped between shots, or a method
+    // not run. An interrupt after the last shot leaves them complete.
+    let partial = runs.iter().any(MethodRun::partial) || runs.len() < methods.len();
     let comparison = Comparison::new(
         &cfg,
         &scene.name,
@@ -310,7 +375,7 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
     );
     let mut contents = vec![
         format!("# {stamp}\n{}", comparison_csv(&comparison)).into_bytes(),
-        (serde_json::to_string_pretty(&comparison_json(&comparison, &options))
+        (serde_json::to_string_pretty(&comparison_json(&comparison, &options, partial))
             .map_err(UserError::from)?
             + "\n")
             .into_bytes(),
@@ -333,17 +398,30 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
             contents.push(ccsv.into_bytes());
         }
         if let Some(camera) = &scene.camera {
-            let (picture, _) = timed(
-                "polygons",
-                RunOptions::default().fidelity,
-                || picture::render(&cfg, &patches, &run.solution, camera.clone()),
+            // Drawn after a first Ctrl-C too, from the shots taken: the polygon program has no
+            // point to stop at early, so only a second Ctrl-C stops it.
+            let name = format!("radiosity (picture, {})", run.method.name());
+            let sim = Sim {
+                name: &name,
+                shots: None,
+                interrupt: Stop::Soon,
+            };
+            let options = RunOptions {
+                max_time: args.time_limit,
+                ..RunOptions::default()
+            };
+            let (picture, _) = watch.simulate(
+                &sim,
+                options,
+                |options| picture::render(&cfg, &patches, &run.solution, camera.clone(), options),
                 |r| r.stats.end,
             )?;
             contents.push(png_with_text(&picture.frame, &stamp)?);
         }
     }
 
-    // Then write it all.
+    // Then write it all (the files of methods a Ctrl-C skipped are not among them).
+    let written = names[..contents.len()].join(", ");
     let mut writes: Vec<_> = files.into_iter().zip(contents).collect();
     for (run, traces) in runs.iter().zip(&traces) {
         for (shot, views) in &run.item_buffers {
@@ -357,9 +435,33 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
     }
     output::write_all(&writes)?;
 
-    out!("{}", table(&comparison, &host_seconds))?;
-    outln!("wrote {}/{}", args.out.display(), names.join(", "))?;
-    Ok(())
+    out!("{}", table(&comparison, &host_seconds, plan.shots))?;
+    outln!("wrote {}/{written}", args.out.display())?;
+    if watch::interrupts() == 0 {
+        return Ok(());
+    }
+    let done: Vec<String> = comparison
+        .methods
+        .iter()
+        .map(|m| format!("{} {} of {} shots", m.method.name(), m.shots, plan.shots))
+        .collect();
+    let skipped: Vec<&str> = methods[runs.len()..].iter().map(|m| m.name()).collect();
+    let mut message = format!("radiosity: interrupted after {}", done.join(", "));
+    if !skipped.is_empty() {
+        message += &format!(" ({} not run)", skipped.join(", "));
+    }
+    message += &if partial {
+        format!(
+            "; wrote what was computed to {}, marked partial",
+            args.out.display()
+        )
+    } else {
+        format!(
+            "; the results were complete, written to {}",
+            args.out.display()
+        )
+    };
+    Err(Failure::Interrupted(message))
 }
 
 /// A PNG of `frame` with `text` in a tEXt chunk (keyword "Comment") and the simulator's name and
@@ -425,8 +527,9 @@ fn pct(x: f64) -> String {
     format!("{:.2} %", 100.0 * x)
 }
 
-/// The comparison as the table printed on stdout, with each run's host seconds.
-fn table(c: &Comparison, host_seconds: &[f64]) -> String {
+/// The comparison as the table printed on stdout, with each run's host seconds; a run that a
+/// Ctrl-C ended early says after how many of the `asked` shots.
+fn table(c: &Comparison, host_seconds: &[f64], asked: usize) -> String {
     let m0 = &c.methods[0];
     let mut t = format!(
         "Progressive radiosity on {} ({}): {} GPs, {} Renderers, {} ring channels\n\
@@ -459,6 +562,13 @@ fn table(c: &Comparison, host_seconds: &[f64]) -> String {
             t += "accuracy: not measured (the scene can hide surfaces from others, so there is \
                   no exact reference)\n"
         }
+    }
+    for m in c.methods.iter().filter(|m| m.partial) {
+        t += &format!(
+            "{}: interrupted after {} of {asked} shots: partial results\n",
+            m.method.name(),
+            m.shots
+        );
     }
     t += "\n";
     let w = 14;
@@ -605,14 +715,14 @@ fn comparison_csv(c: &Comparison) -> String {
         "method,shots,patches,shooters_at_once,simulated_s,per_shot_s,time_to_target_s,\
          shots_to_target,target_error,final_error,form_factor_error,renderer_busy_s,gp_busy_s,\
          ring_payload_words,renderer_utilisation,bottleneck,seed_estimate_s,\
-         seed_estimate_readback_x_n_s,reciprocity_clamps\n",
+         seed_estimate_readback_x_n_s,reciprocity_clamps,partial\n",
     );
     let opt = |x: Option<f64>| x.map_or(String::new(), |x| format!("{x:.9}"));
     for m in &c.methods {
         let conv = m.convergence.as_ref();
         let to = conv.and_then(|c| c.time_to_target);
         csv += &format!(
-            "{},{},{},{},{:.9},{:.9},{},{},{},{},{},{:.9},{:.9},{},{:.4},{},{:.9},{:.9},{}\n",
+            "{},{},{},{},{:.9},{:.9},{},{},{},{},{},{:.9},{:.9},{},{:.4},\"{}\",{:.9},{:.9},{},{}\n",
             m.method.name(),
             m.shots,
             c.patches,
@@ -628,17 +738,25 @@ fn comparison_csv(c: &Comparison) -> String {
             m.gp_busy_s,
             m.ring_payload_words,
             m.renderer_utilisation,
+            // Quoted: the bottleneck's text holds commas (RFC 4180; it holds no quote).
             m.bottleneck,
             m.seed.as_written,
             m.seed.readback_x_n,
-            m.reciprocity_clamps
+            m.reciprocity_clamps,
+            m.partial
         );
     }
     csv
 }
 
 /// The comparison as `comparison.json`, with the options and each run's full simulated stats.
-fn comparison_json(c: &Comparison, options: &serde_json::Value) -> serde_json::Value {
+/// `partial` when the results fall short of those asked (a Ctrl-C: a run ended between shots,
+/// each such run marked `partial` too, or a method not run).
+fn comparison_json(
+    c: &Comparison,
+    options: &serde_json::Value,
+    partial: bool,
+) -> serde_json::Value {
     let methods: Vec<_> = c
         .methods
         .iter()
@@ -656,6 +774,7 @@ fn comparison_json(c: &Comparison, options: &serde_json::Value) -> serde_json::V
             serde_json::json!({
                 "method": m.method.name(),
                 "shots": m.shots,
+                "partial": m.partial,
                 "simulated_s": m.simulated_s,
                 "per_shot_s": m.per_shot_s,
                 "accuracy": conv,
@@ -687,6 +806,7 @@ fn comparison_json(c: &Comparison, options: &serde_json::Value) -> serde_json::V
     });
     serde_json::json!({
         "options": options,
+        "partial": partial,
         "seed_assumptions": seed_check,
         "config": c.config,
         "config_hash": c.config_hash,
@@ -745,6 +865,15 @@ pub struct FormFactorArgs {
     /// null for the exact method) and options (as given, with the unit normal used).
     #[arg(long)]
     pub json: bool,
+    /// Stop with an error (exit code 1) if the machine's run passes this much simulated time.
+    #[arg(long, value_name = "TIME", default_value = "10s",
+          value_parser = watch::parse_time_limit)]
+    pub time_limit: Tick,
+    /// Stop with an error (exit code 1) once the command has taken this much host time (ms, s,
+    /// min or h; `none`: no limit).
+    #[arg(long, value_name = "TIME", default_value = watch::DEFAULT_HOST_LIMIT,
+          value_parser = watch::parse_host_limit)]
+    pub host_time_limit: HostLimit,
 }
 
 /// `x` as the shortest decimal that reads back as the same f64 (Rust's `{}` and `{:e}` both
@@ -993,7 +1122,8 @@ fn given(args: &FormFactorArgs) -> Result<Given, UserError> {
     })
 }
 
-pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
+pub fn formfactor(args: &FormFactorArgs) -> Result<(), Failure> {
+    let watch = Watch::new(args.host_time_limit.clone());
     let given = given(args)?;
     let exact = pxpl5_radiosity::exact::point_to_polygon(given.point, given.normal, &given.polygon);
     let measured = match args.method.on_machine() {
@@ -1007,16 +1137,37 @@ pub fn formfactor(args: &FormFactorArgs) -> Result<(), UserError> {
                 resolution: args.resolution,
                 ..FfOptions::default()
             };
-            let (measured, _) = timed(
-                "formfactor",
-                RunOptions::default().fidelity,
-                || {
+            let name = format!("formfactor ({})", method.name());
+            watch::estimate(
+                &Estimate {
+                    name: &name,
+                    units: machine_units(&cfg),
+                    work: 1,
+                    work_is: "polygon",
+                    large: 1,
+                },
+                watch.host_limit(),
+            );
+            let sim = Sim {
+                name: &name,
+                shots: None,
+                interrupt: Stop::Now,
+            };
+            let run = RunOptions {
+                max_time: args.time_limit,
+                ..RunOptions::default()
+            };
+            let (measured, _) = watch.simulate(
+                &sim,
+                run,
+                |run| {
                     experiment::form_factor(
                         &cfg,
                         given.point,
                         given.unit_normal,
                         given.polygon.clone(),
                         options,
+                        run,
                     )
                 },
                 |r| r.stats.end,

@@ -3,25 +3,25 @@
 //! Chrome trace and a VCD of simulated time.
 //!
 //! Nothing is half-written: every output is checked before the run and written after it
-//! (`output::write_all`).
+//! (`output::write_all`). The run is watched (`watch`): its work is estimated first, it stops at
+//! `--time-limit` (simulated) or `--host-time-limit` with exit code 1, and at Ctrl-C with exit
+//! code 130, writing nothing either way.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 use clap::Args;
 use pxpl5_config::MachineConfig;
-use pxpl5_machine::{
-    FrameBufferImage, Machine, Program, Recorder, RunError, RunOptions, RunResult,
-};
+use pxpl5_machine::{FrameBufferImage, Machine, Program, Recorder, RunOptions, Stop};
 use pxpl5_polygons::{Polygons, scenes};
-use pxpl5_renderer::Fidelity;
 use pxpl5_sim::Tick;
-use pxpl5_trace::{TraceWindow, parse_time};
+use pxpl5_trace::TraceWindow;
 
 use crate::UserError;
 use crate::choices::{FidelityArg, ProgramArg};
 use crate::config_cmd;
+use crate::failure::Failure;
 use crate::output::{self, Dest, out, outln};
+use crate::watch::{self, Estimate, HostLimit, Sim, Watch};
 
 /// Options of `pxpl5 run`.
 #[derive(Args, Clone, Debug)]
@@ -49,12 +49,20 @@ pub struct RunArgs {
     /// Renderer fidelity level: bit or integer (identical results and cycles).
     #[arg(long, value_enum, default_value_t = FidelityArg::Integer)]
     pub fidelity: FidelityArg,
-    /// Stop with an error if the run passes this much simulated time (e.g. 10s, 500ms).
-    #[arg(long, default_value = "10s")]
-    pub max_time: String,
+    /// Stop with an error (exit code 1) if the run passes this much simulated time (e.g. 10s,
+    /// 500ms): the polygon program's runs take milliseconds. Also --max-time.
+    #[arg(long, alias = "max-time", value_name = "TIME", default_value = "10s",
+          value_parser = watch::parse_time_limit)]
+    pub time_limit: Tick,
+    /// Stop with an error (exit code 1) once the command has taken this much host time (ms, s,
+    /// min or h; `none`: no limit).
+    #[arg(long, value_name = "TIME", default_value = watch::DEFAULT_HOST_LIMIT,
+          value_parser = watch::parse_host_limit)]
+    pub host_time_limit: HostLimit,
 }
 
-pub fn run(args: &RunArgs) -> Result<(), UserError> {
+pub fn run(args: &RunArgs) -> Result<(), Failure> {
+    let watch = Watch::new(args.host_time_limit.clone());
     let cfg = config_cmd::load(args.config.as_deref())?;
     let scene = match (&args.scene, args.triangles) {
         (Some(path), _) => {
@@ -63,8 +71,6 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
         (None, Some(n)) => scenes::random_scene(n, args.seed, 3.0),
         (None, None) => scenes::builtin_scene(),
     };
-    let max_time = parse_time(&args.max_time).map_err(|e| UserError(format!("--max-time: {e}")))?;
-    let fidelity = Fidelity::from(args.fidelity);
 
     // Check every destination before spending time on the run.
     output::check_dir("--out", &args.out)?;
@@ -77,8 +83,32 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
     output::distinct(dests.iter().chain(traces.iter()))?;
 
     let program = Polygons::new(scene);
-    let options = RunOptions { fidelity, max_time };
-    let (result, host_seconds) = simulate(&cfg, &program, options, recorder)?;
+    let options = RunOptions {
+        fidelity: args.fidelity.into(),
+        max_time: args.time_limit,
+        monitor: None,
+    };
+    watch::estimate(
+        &Estimate {
+            name: "run",
+            units: machine_units(&cfg),
+            work: program.scene().triangles.len() as u64,
+            work_is: "triangles",
+            large: watch::large::TRIANGLES,
+        },
+        watch.host_limit(),
+    );
+    let sim = Sim {
+        name: "run",
+        shots: None,
+        interrupt: Stop::Now,
+    };
+    let (result, host_seconds) = watch.simulate(
+        &sim,
+        options,
+        |options| Machine::new(&cfg, &program as &dyn Program, options, recorder)?.run(),
+        |r| r.stats.end,
+    )?;
 
     let stats = &result.stats;
     let mut json = serde_json::to_string_pretty(&stats.to_json()).map_err(UserError::from)?;
@@ -115,43 +145,9 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
     Ok(())
 }
 
-/// Build the machine of `cfg`, run `program` on it to completion, and return the result with the
-/// host seconds both took; logged as [`timed`] says.
-pub fn simulate(
-    cfg: &MachineConfig,
-    program: &dyn Program,
-    options: RunOptions,
-    recorder: Recorder,
-) -> Result<(RunResult, f64), UserError> {
-    timed(
-        program.name(),
-        options.fidelity,
-        || Machine::new(cfg, program, options, recorder)?.run(),
-        |r| r.stats.end,
-    )
-}
-
-/// Call `run`, one simulation of `program` at `fidelity` (a library call that builds and runs a
-/// machine), and return its result with the host seconds it took. Logs the start and the end
-/// (simulated time, `end` of the result; host seconds) at info level. Host time is measured
-/// here, not in the libraries, so that nothing they return depends on the host.
-pub fn timed<T>(
-    program: &str,
-    fidelity: Fidelity,
-    run: impl FnOnce() -> Result<T, RunError>,
-    end: impl FnOnce(&T) -> Tick,
-) -> Result<(T, f64), UserError> {
-    tracing::info!(program = %program, fidelity = %fidelity.name(), "simulation starts");
-    let t0 = Instant::now();
-    let result = run().map_err(UserError::from)?;
-    let host_seconds = t0.elapsed().as_secs_f64();
-    tracing::info!(
-        program = %program,
-        simulated_ms = %format!("{:.6}", end(&result).as_secs_f64() * 1e3),
-        host_s = %format!("{host_seconds:.3}"),
-        "simulation ends"
-    );
-    Ok((result, host_seconds))
+/// GPs and Renderers of `cfg`, for work estimates.
+pub fn machine_units(cfg: &MachineConfig) -> u64 {
+    u64::from(cfg.gp.count) + u64::from(cfg.renderer.count)
 }
 
 /// The trace options every simulating subcommand takes.

@@ -1105,9 +1105,9 @@ fn a_dash_sends_a_trace_to_stdout_and_the_report_to_stderr() {
     assert!(text(&out.stderr).contains("--trace -"));
 }
 
-/// The seed machine with a 1 kHz Renderer clock: radiosity's form-factor runs fit their limit
-/// (1,000 s simulated), the picture's render does not (10 s), so it fails after everything else
-/// was computed.
+/// The seed machine with a 1 kHz Renderer clock: with `--time-limit 30s`, radiosity's form-factor
+/// runs of one shot in big patches fit the limit (18 s and 14 s simulated), the picture's render
+/// does not (44 s), so it fails after everything else was computed.
 fn slow_renderer_config() -> PathBuf {
     let seed = std::fs::read_to_string(root().join("machine-configs/seed-tr89-002.ron")).unwrap();
     let clock = "clock_hz: 40_000_000, // [paper]";
@@ -1162,6 +1162,8 @@ fn a_failed_run_leaves_the_output_directory_as_it_found_it() {
             "16",
             "--item-buffers",
             "0",
+            "--time-limit",
+            "30s",
             "--out",
             out_d.to_str().unwrap(),
             "--trace",
@@ -1169,8 +1171,14 @@ fn a_failed_run_leaves_the_output_directory_as_it_found_it() {
         ]);
         no_panic(&out);
         let err = text(&out.stderr);
-        assert!(matches!(out.status.code(), Some(1 | 2)), "{err}");
-        assert!(err.contains("time limit"), "{err}");
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert!(
+            err.starts_with(
+                "radiosity (picture, hemisphere): simulated time limit of 30.000 s reached \
+                 (--time-limit)"
+            ),
+            "{err}"
+        );
         assert_eq!(text(&out.stdout), "", "a failed run prints no report");
     }
     assert!(
@@ -1179,23 +1187,19 @@ fn a_failed_run_leaves_the_output_directory_as_it_found_it() {
     );
     assert_eq!(listing(&present), before);
 
-    // `run` past its --max-time.
+    // `run` past its --time-limit.
     let run_d = out_dir("failed-run");
     let out = run_small_with(
         &run_d,
         &[
-            "--max-time",
+            "--time-limit",
             "1us",
             "--trace",
             run_d.join("t.json").to_str().unwrap(),
         ],
     );
     no_panic(&out);
-    assert!(
-        matches!(out.status.code(), Some(1 | 2)),
-        "{}",
-        text(&out.stderr)
-    );
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out.stderr));
     assert!(!run_d.exists(), "a failed run wrote {:?}", listing(&run_d));
 }
 
@@ -1243,4 +1247,352 @@ fn two_outputs_to_one_file_fail_before_the_run() {
     assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
     assert!(text(&out.stderr).contains("stdout: two outputs"));
     assert!(!d.exists());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Runs that cannot hang silently: limits, exit codes, Ctrl-C
+// ---------------------------------------------------------------------------------------------
+
+/// A radiosity run of the hemisphere only, in big patches at a low resolution, with `more`.
+fn radiosity_hemisphere(out: &Path, shots: &str, more: &[&str]) -> Output {
+    let mut args = vec![
+        "radiosity",
+        "--method",
+        "hemisphere",
+        "--shots",
+        shots,
+        "--threshold",
+        "0",
+        "--patch-size",
+        "400",
+        "--resolution",
+        "16",
+        // One shooter at a time and no accuracy target: shots end one by one, at the same
+        // simulated times in a 2-shot and a 6-shot run.
+        "--shooters-at-once",
+        "1",
+        "--until-error",
+        "0",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    args.extend(more);
+    pxpl5(&args)
+}
+
+/// Simulated picoseconds of the one method of `dir/comparison.json`.
+fn simulated_ps(dir: &Path) -> u64 {
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("comparison.json")).unwrap()).unwrap();
+    json["methods"][0]["stats"]["simulated_ps"]
+        .as_u64()
+        .unwrap()
+}
+
+#[test]
+fn a_failed_simulation_exits_1_saying_where_it_was() {
+    // `run` past its simulated time limit (also spelled --max-time): the units still running, a
+    // line per group, and nothing written.
+    let d = out_dir("limit-run");
+    for flag in ["--time-limit", "--max-time"] {
+        let out = run_small_with(&d, &[flag, "20us"]);
+        no_panic(&out);
+        let err = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert!(
+            err.starts_with(
+                "run: simulated time limit of 20.000 us reached (--time-limit); nothing written. \
+                 Still running:\n  GP 0: "
+            ),
+            "{err}"
+        );
+        assert_eq!(text(&out.stdout), "");
+        assert!(!d.exists(), "a failed run wrote {:?}", listing(&d));
+    }
+
+    // Radiosity: the limit set at the end of a 2-shot run stops a 6-shot run with 2 shots done
+    // (the first shots of both are the same run).
+    let two = out_dir("limit-two-shots");
+    let out = radiosity_hemisphere(&two, "2", &[]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let limit = format!("{}ps", simulated_ps(&two));
+    let d = out_dir("limit-radiosity");
+    let out = radiosity_hemisphere(&d, "6", &["--time-limit", &limit]);
+    no_panic(&out);
+    let err = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.starts_with("radiosity (hemisphere): simulated time limit of ")
+            && err.contains(
+                " reached (--time-limit), 2 of 6 shots done; nothing written. Still running:\n"
+            ),
+        "{err}"
+    );
+    assert!(!d.exists(), "a failed run wrote {:?}", listing(&d));
+
+    // A user's mistake is still 2.
+    let out = radiosity_hemisphere(&d, "6", &["--time-limit", "10 parsecs"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("--time-limit"));
+}
+
+#[test]
+fn a_host_time_limit_stops_a_long_run_saying_where_it_was() {
+    // 100,000 shots would take many minutes; the host-time limit stops the run after 500 ms.
+    let d = out_dir("host-limit");
+    let t0 = std::time::Instant::now();
+    // The default patches (199) and no accuracy target, so that 100,000 shots cannot end early.
+    let out = pxpl5(&[
+        "radiosity",
+        "--method",
+        "hemisphere",
+        "--shots",
+        "100000",
+        "--threshold",
+        "0",
+        "--until-error",
+        "0",
+        "--resolution",
+        "16",
+        "--host-time-limit",
+        "500ms",
+        "--out",
+        d.to_str().unwrap(),
+    ]);
+    let took = t0.elapsed();
+    no_panic(&out);
+    let err = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    // First the work estimate's warning (199 patches x 100,000 shots), then the report.
+    let (warning, report) = err.split_once('\n').expect("two parts");
+    assert!(
+        warning.contains(
+            "WARN pxpl5::watch: radiosity: a large run: 19,900,000 receiver draws at most \
+             (patches x shots x methods x tiles per view), more than 5,000,000; it may take many \
+             minutes (--host-time-limit 500ms stops it)"
+        ),
+        "{err}"
+    );
+    let prefix = "radiosity (hemisphere): host time limit of 500ms reached (--host-time-limit): \
+                  stopped at ";
+    assert!(report.starts_with(prefix), "{err}");
+    let done: u64 = err
+        .split(" of 100000 shots done")
+        .next()
+        .and_then(|s| s.rsplit(", ").next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no shot count: {err}"));
+    assert!(done < 100_000, "{err}");
+    assert!(err.contains("nothing written. Still running:\n  "), "{err}");
+    assert!(!d.exists(), "a failed run wrote {:?}", listing(&d));
+    assert!(took < std::time::Duration::from_secs(60), "{took:?}");
+
+    for bad in ["0s", "10", "soon"] {
+        let out = radiosity_hemisphere(&d, "1", &["--host-time-limit", bad]);
+        assert_eq!(out.status.code(), Some(2), "{bad}: {}", text(&out.stderr));
+        assert!(text(&out.stderr).contains("--host-time-limit"), "{bad}");
+    }
+}
+
+#[test]
+fn help_gives_the_exit_codes_and_the_limits_with_their_defaults() {
+    let help = text(&pxpl5(&["--help"]).stdout);
+    for code in [
+        "  0    success",
+        "  1    a simulation that failed",
+        "  2    a user's mistake",
+        "  130  interrupted",
+    ] {
+        assert!(help.contains(code), "{code}: {help}");
+    }
+    for (command, time_limit) in [
+        ("run", "10s"),
+        ("radiosity", "1000s"),
+        ("formfactor", "10s"),
+    ] {
+        let help = text(&pxpl5(&[command, "--help"]).stdout);
+        let flat = help.split_whitespace().collect::<Vec<_>>().join(" ");
+        assert!(
+            flat.contains(&format!("[default: {time_limit}]")),
+            "{command}: {help}"
+        );
+        assert!(
+            flat.contains("--host-time-limit <TIME>"),
+            "{command}: {help}"
+        );
+        assert!(flat.contains("[default: 10min]"), "{command}: {help}");
+    }
+}
+
+/// A child `pxpl5 -v ARGS` whose stderr lines arrive on the returned channel.
+fn spawn_logged(args: &[&str]) -> (std::process::Child, std::sync::mpsc::Receiver<String>) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pxpl5"))
+        .arg("-v")
+        .args(args)
+        .current_dir(root())
+        .env_remove("RUST_LOG")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("pxpl5 starts");
+    let stderr = child.stderr.take().expect("piped");
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    (child, rx)
+}
+
+/// Wait (at most a minute) for a line of `lines` containing `needle`; kill `child` and fail if
+/// none comes.
+fn wait_for_line(
+    child: &mut std::process::Child,
+    lines: &std::sync::mpsc::Receiver<String>,
+    needle: &str,
+) {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    loop {
+        let left = deadline.saturating_duration_since(std::time::Instant::now());
+        match lines.recv_timeout(left) {
+            Ok(line) if line.contains(needle) => return,
+            Ok(_) => {}
+            Err(_) => {
+                let _ = child.kill();
+                panic!("no line with `{needle}` on stderr within a minute");
+            }
+        }
+    }
+}
+
+/// Send SIGINT to `child`, as Ctrl-C does, and wait (at most a minute) for it to end; its exit
+/// code, stdout and the rest of its stderr.
+fn interrupt(
+    mut child: std::process::Child,
+    lines: std::sync::mpsc::Receiver<String>,
+) -> (Option<i32>, String, String) {
+    let sent = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(sent.success());
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("waits") {
+            break status;
+        }
+        if std::time::Instant::now() > deadline {
+            let _ = child.kill();
+            panic!("pxpl5 did not end within a minute of SIGINT");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    let mut stdout = String::new();
+    std::io::Read::read_to_string(&mut child.stdout.take().expect("piped"), &mut stdout).unwrap();
+    let stderr: Vec<String> = lines.iter().collect();
+    (status.code(), stdout, stderr.join("\n"))
+}
+
+#[test]
+fn ctrl_c_ends_radiosity_between_shots_and_writes_what_it_computed_marked_partial() {
+    let d = out_dir("interrupted-radiosity");
+    // Both methods asked, 100,000 shots each: many minutes, unless interrupted.
+    let (mut child, lines) = spawn_logged(&[
+        "radiosity",
+        "--shots",
+        "100000",
+        "--threshold",
+        "0",
+        "--until-error",
+        "0",
+        "--resolution",
+        "16",
+        "--out",
+        d.to_str().unwrap(),
+    ]);
+    // A shot done: the handler is in place and the run well under way.
+    wait_for_line(&mut child, &lines, " of 100000 shots done");
+    let (code, stdout, stderr) = interrupt(child, lines);
+    no_panic(&Output {
+        status: std::process::ExitStatus::default(),
+        stdout: Vec::new(),
+        stderr: stderr.clone().into_bytes(),
+    });
+    assert_eq!(code, Some(130), "{stderr}");
+
+    // comparison.json: complete (it parses), marked partial, the hemicube not run.
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("comparison.json")).unwrap()).unwrap();
+    assert_eq!(json["partial"], true);
+    let methods = json["methods"].as_array().unwrap();
+    assert_eq!(methods.len(), 1, "the hemicube was not run");
+    assert_eq!(methods[0]["method"], "hemisphere");
+    assert_eq!(methods[0]["partial"], true);
+    let shots = methods[0]["shots"].as_u64().unwrap();
+    assert!((1..100_000).contains(&shots), "{shots}");
+
+    // The report and the message say so.
+    assert!(
+        stdout.contains(&format!(
+            "hemisphere: interrupted after {shots} of 100000 shots: partial results"
+        )),
+        "{stdout}"
+    );
+    assert!(
+        stderr.ends_with(&format!(
+            "radiosity: interrupted after hemisphere {shots} of 100000 shots (hemicube not run); \
+             wrote what was computed to {}, marked partial",
+            d.display()
+        )),
+        "{stderr}"
+    );
+
+    // Every other file complete: the CSVs to their last line, the picture to its last row.
+    // (Each CSV's first line records the options: `# pxpl5 ...`.)
+    let csv = std::fs::read_to_string(d.join("comparison.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert_eq!(rows.len(), 2, "{csv}");
+    assert!(rows[0].ends_with(",partial") && rows[1].starts_with(&format!("hemisphere,{shots},")));
+    assert!(rows[1].ends_with(",true"), "{csv}");
+    let patches = json["patches"].as_u64().unwrap() as usize;
+    let pcsv = std::fs::read_to_string(d.join("patches-hemisphere.csv")).unwrap();
+    assert!(pcsv.ends_with('\n'));
+    assert_eq!(pcsv.lines().count(), patches + 2);
+    assert!(
+        pcsv.lines().skip(1).all(|l| l.split(',').count() == 6),
+        "{pcsv}"
+    );
+    assert!(
+        !d.join("patches-hemicube.csv").exists(),
+        "the hemicube was not run"
+    );
+    let decoder = png::Decoder::new(std::io::Cursor::new(
+        std::fs::read(d.join("radiosity-hemisphere.png")).unwrap(),
+    ));
+    let mut reader = decoder.read_info().expect("a PNG");
+    let mut pixels = vec![0; reader.output_buffer_size().expect("sized")];
+    reader.next_frame(&mut pixels).expect("every row");
+    let check = pxpl5(&["config", "check", d.join("config.ron").to_str().unwrap()]);
+    assert!(check.status.success(), "{}", text(&check.stderr));
+}
+
+#[test]
+fn ctrl_c_stops_run_at_once_and_writes_nothing() {
+    let d = out_dir("interrupted-run");
+    // 400,000 triangles: about a minute, unless interrupted.
+    let (mut child, lines) =
+        spawn_logged(&["run", "--triangles", "400000", "--out", d.to_str().unwrap()]);
+    wait_for_line(&mut child, &lines, "simulation starts");
+    let (code, stdout, stderr) = interrupt(child, lines);
+    assert_eq!(code, Some(130), "{stderr}");
+    assert!(
+        stderr.contains("run: interrupted at ")
+            && stderr.contains("; nothing written. Still running:"),
+        "{stderr}"
+    );
+    assert_eq!(stdout, "");
+    assert!(!d.exists(), "an interrupted run wrote {:?}", listing(&d));
 }

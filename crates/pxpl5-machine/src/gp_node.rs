@@ -197,7 +197,8 @@ impl GpNode {
         self.shared.borrow_mut().granted = true;
     }
 
-    /// A line for a deadlock report, if the GP has not finished.
+    /// A line for a report of the units still running (a deadlock, a limit), if the GP has not
+    /// finished.
     pub fn waiting(&self) -> Option<String> {
         let what = match &self.state {
             GpState::Runnable => "runnable".to_string(),
@@ -205,7 +206,7 @@ impl GpNode {
             GpState::BlockedSend(out) => {
                 format!("waits to send to {} (output queue full)", out.to)
             }
-            GpState::Receiving => "waits for a message that nobody sends".to_string(),
+            GpState::Receiving => "waits for a message".to_string(),
             GpState::Done => return None,
         };
         Some(format!("  GP {}: {what}", self.index))

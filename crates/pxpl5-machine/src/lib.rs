@@ -3,7 +3,8 @@
 //!
 //! This is the only crate that knows the topology. Programs see only the GP runtime ([`gp`]:
 //! [`Gp`], [`Program`], [`Unit`], [`Payload`]) and the Renderer command set; stats are simulated
-//! quantities only ([`RunStats`]); traces are recorded by [`Recorder`] in simulated time.
+//! quantities only ([`RunStats`]); traces are recorded by [`Recorder`] in simulated time. A host
+//! watches a run, and may stop it, through its [`Monitor`].
 
 mod critical;
 mod delivery;
@@ -11,6 +12,7 @@ mod frame_buffer;
 pub mod gp;
 mod gp_node;
 mod machine;
+mod monitor;
 mod record;
 mod renderer_node;
 mod run;
@@ -23,6 +25,7 @@ pub use gp::{
     ProgramError, Record, Tag, Unit,
 };
 pub use machine::Machine;
+pub use monitor::{CHECK_EVERY, Monitor, Stop};
 pub use record::Recorder;
 pub use run::{RunError, RunOptions, RunResult};
 pub use stats::{GpStats, PathPart, PhaseSpan, RendererNodeStats, Resource, RunStats};

@@ -16,7 +16,9 @@
 //! 5. blocked sends are retried.
 //!
 //! If every GP waits and nothing is due, the run stops with a deadlock report naming who waits for
-//! what; a limit on simulated time ends runaway runs with an error.
+//! what; a limit on simulated time ends runaway runs with an error. Once every `CHECK_EVERY`
+//! instants the loop tells the run's `Monitor`, if it has one, the simulated time reached, and
+//! stops with `RunError::Stopped` if the host asked it to stop now (`crate::monitor`).
 
 use std::cell::RefCell;
 use std::collections::BTreeMap;
@@ -31,6 +33,7 @@ use crate::delivery::{Arrival, Delivery, Route, Sent};
 use crate::frame_buffer::FrameBufferImage;
 use crate::gp::{Gp, Payload, Program, Shared, Unit};
 use crate::gp_node::{Busy, GpNode, GpState, GpStep};
+use crate::monitor::{CHECK_EVERY, Stop};
 use crate::record::Recorder;
 use crate::renderer_node::{RendererNode, Started};
 use crate::run::{RunError, RunOptions, RunResult};
@@ -180,10 +183,25 @@ impl Machine {
             renderer_cycle,
             u64::from(self.cfg.ring.queue_words),
         );
+        // Instants since the monitor was last looked at (see `crate::monitor`).
+        let mut unwatched = 0u64;
         loop {
             self.step_units()?;
             if self.gps.iter().all(|g| g.state == GpState::Done) && self.quiescent() {
                 break;
+            }
+            if let Some(m) = &self.options.monitor {
+                unwatched += 1;
+                if unwatched == CHECK_EVERY {
+                    unwatched = 0;
+                    m.set_reached(self.now);
+                    if m.requested() == Stop::Now {
+                        return Err(RunError::Stopped {
+                            at: self.now,
+                            running: self.waiting_report().replace('\n', "; "),
+                        });
+                    }
+                }
             }
             let next = [self.events.peek_tick(), self.ring.next_event_tick()]
                 .into_iter()
@@ -509,6 +527,9 @@ impl Machine {
 
     fn finish(self) -> RunResult {
         let end = self.now;
+        if let Some(m) = &self.options.monitor {
+            m.set_reached(end);
+        }
         let gps = self.gps.iter().map(|g| g.stats(end)).collect();
         let renderers = self.renderers.iter().map(|r| r.stats(end)).collect();
         let phases: Vec<PhaseSpan> = self.recorder.phase_spans(end);

@@ -1,4 +1,7 @@
-//! What a run takes and gives: its options, its result, and why it can fail.
+//! What a run takes and gives: its options (with the limit of simulated time and the host's
+//! [`Monitor`]), its result, and why it can fail.
+
+use std::sync::Arc;
 
 use pxpl5_renderer::Fidelity;
 use pxpl5_ring::RingError;
@@ -6,6 +9,7 @@ use pxpl5_sim::Tick;
 
 use crate::frame_buffer::FrameBufferImage;
 use crate::gp::Unit;
+use crate::monitor::Monitor;
 use crate::record::Recorder;
 use crate::stats::RunStats;
 
@@ -15,6 +19,9 @@ pub struct RunOptions {
     pub fidelity: Fidelity,
     /// Simulated time after which the run is stopped with an error.
     pub max_time: Tick,
+    /// Where the host watches the run and may ask it to stop; `None` runs it unwatched. It never
+    /// changes a result of a run that is not asked to stop (see [`Monitor`]).
+    pub monitor: Option<Arc<Monitor>>,
 }
 
 impl Default for RunOptions {
@@ -23,6 +30,7 @@ impl Default for RunOptions {
             fidelity: Fidelity::Integer,
             // 10 simulated seconds: far beyond any shipped program's run.
             max_time: Tick(10_000_000_000_000),
+            monitor: None,
         }
     }
 }
@@ -43,6 +51,10 @@ pub enum RunError {
     Deadlock { at: Tick, waiting: String },
     #[error("simulated time limit of {limit} reached (still running: {running})")]
     TimeLimit { limit: Tick, running: String },
+    /// The host asked the run to stop at once ([`crate::Stop::Now`]): a host-time limit or an
+    /// interrupt, which the host knows and says.
+    #[error("stopped at {at} of simulated time (still running: {running})")]
+    Stopped { at: Tick, running: String },
     #[error("{unit} sent a message the ring cannot carry: {error}")]
     Ring { unit: Unit, error: RingError },
     #[error("{from} sent a message to {to}, which this machine does not have")]

@@ -1,17 +1,18 @@
 //! Integration tests of the machine: small programs on small machines, with exact simulated
 //! values derived by hand from the timing rules (GP cost table, the ring's idle-latency formula
 //! and token rules from `pxpl5_ring`'s crate doc, the Renderer cycle table), plus the run errors
-//! (deadlock, time limit, program error), determinism of stats and traces, fidelity independence
+//! (deadlock, time limit, a stop asked by the host, program error), determinism of stats and traces, fidelity independence
 //! and per-pair message ordering.
 
 use std::cell::RefCell;
 use std::collections::BTreeSet;
 use std::rc::Rc;
+use std::sync::Arc;
 
 use pxpl5_config::MachineConfig;
 use pxpl5_machine::{
-    Gp, GpFuture, Machine, Message, Op, Payload, Program, ProgramError, Recorder, RunError,
-    RunOptions, RunResult, Unit, node_order,
+    CHECK_EVERY, Gp, GpFuture, Machine, Message, Monitor, Op, Payload, Program, ProgramError,
+    Recorder, RunError, RunOptions, RunResult, Stop, Unit, node_order,
 };
 use pxpl5_renderer::{Bit, Command, Fidelity, Field, QeeExpr, Rect, Window, cycle_cost, readback};
 use pxpl5_ring::{idle_delivery, idle_latency};
@@ -68,7 +69,12 @@ fn run_with(
     max_time: Tick,
     recorder: Recorder,
 ) -> Result<RunResult, RunError> {
-    Machine::new(cfg, p, RunOptions { fidelity, max_time }, recorder)?.run()
+    let options = RunOptions {
+        fidelity,
+        max_time,
+        monitor: None,
+    };
+    Machine::new(cfg, p, options, recorder)?.run()
 }
 
 fn run(cfg: &MachineConfig, p: &dyn Program) -> Result<RunResult, RunError> {
@@ -602,6 +608,78 @@ fn computing_forever_hits_the_time_limit() {
     );
     assert!(matches!(r, Err(RunError::TimeLimit { limit, .. }) if limit == one_ms));
     assert_eq!(*steps.borrow(), 40);
+}
+
+/// A program computing forever in steps of 1,000 GP cycles (25 us on the minimal machine), one
+/// instant each, counting its steps in `steps`.
+fn forever_in_steps(steps: Rc<RefCell<u64>>) -> impl Program {
+    program("forever-steps", move |gp| {
+        let steps = steps.clone();
+        Box::pin(async move {
+            loop {
+                gp.compute_cycles(Cycles(1000)).await;
+                *steps.borrow_mut() += 1;
+            }
+        })
+    })
+}
+
+#[test]
+fn a_stop_asked_now_ends_the_run_at_the_next_look_with_where_it_was() {
+    let steps: Rc<RefCell<u64>> = Rc::default();
+    let monitor = Arc::new(Monitor::default());
+    monitor.request(Stop::Now);
+    let options = RunOptions {
+        monitor: Some(monitor.clone()),
+        ..RunOptions::default()
+    };
+    let p = forever_in_steps(steps.clone());
+    let r = Machine::new(&minimal(), &p, options, Recorder::new(None, None))
+        .expect("builds")
+        .run();
+    let Err(RunError::Stopped { at, running }) = r else {
+        panic!("expected a stop");
+    };
+    // The loop looks at its monitor on its CHECK_EVERY-th instant, after the GPs acted: the
+    // instants were 0, 25 us, ..., (CHECK_EVERY - 1) x 25 us, each but the first ending a step.
+    assert_eq!(at, Tick((CHECK_EVERY - 1) * 25_000_000));
+    assert_eq!(*steps.borrow(), CHECK_EVERY - 1);
+    assert_eq!(monitor.reached(), at);
+    assert!(running.contains("GP 0: computing"), "{running}");
+}
+
+#[test]
+fn a_monitor_changes_nothing_in_a_run_not_stopped_now() {
+    let cfg = machine(2, 2, 2);
+    let p = program("pingpong", |gp| {
+        Box::pin(async move {
+            for k in 0..3000u32 {
+                gp.compute_cycles(Cycles(7 + u64::from(k % 5))).await;
+                let other = 1 - gp.index();
+                gp.send(Unit::Gp(other), data(u64::from(k), 2)).await;
+                gp.recv().await;
+            }
+            Ok(())
+        })
+    });
+    let plain = run(&cfg, &p).expect("runs");
+    let monitor = Arc::new(Monitor::default());
+    // A program that does not look at its monitor runs on when asked to stop soon.
+    monitor.request(Stop::Soon);
+    let options = RunOptions {
+        monitor: Some(monitor.clone()),
+        ..RunOptions::default()
+    };
+    let watched = Machine::new(&cfg, &p, options, Recorder::new(None, None))
+        .expect("builds")
+        .run()
+        .expect("runs");
+    assert_eq!(
+        watched.stats.to_json().to_string(),
+        plain.stats.to_json().to_string()
+    );
+    assert_eq!(monitor.reached(), plain.stats.end);
+    assert!(plain.stats.end > Tick(0));
 }
 
 #[test]

@@ -84,8 +84,12 @@ impl SeedCheck {
 #[derive(Clone, Debug)]
 pub struct MethodSummary {
     pub method: Method,
-    /// Shots taken (the seed's N; fewer than asked when the threshold stopped the run).
+    /// Shots taken (the seed's N; fewer than asked when the threshold stopped the run, or a
+    /// stop asked by the host).
     pub shots: usize,
+    /// Whether the host's stop (a Ctrl-C) ended the run before its shots: its figures are those
+    /// of the shots taken ([`MethodRun::partial`]).
+    pub partial: bool,
     /// Simulated seconds of the whole run, and per shot (per one shot when none was taken).
     pub simulated_s: f64,
     pub per_shot_s: f64,
@@ -130,6 +134,7 @@ impl MethodSummary {
         MethodSummary {
             method: run.method,
             shots,
+            partial: run.partial(),
             simulated_s,
             per_shot_s: simulated_s / shots.max(1) as f64,
             bottleneck: bottleneck(&run.stats),

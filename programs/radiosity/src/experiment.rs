@@ -59,6 +59,7 @@ impl Default for Settings {
                 // 1,000 simulated seconds, far beyond the machine's default of 10: a fine mesh
                 // with many shots may need it, and a runaway program still stops.
                 max_time: Tick(1_000_000_000_000_000),
+                monitor: None,
             },
         }
     }
@@ -80,14 +81,22 @@ pub struct MethodRun {
 }
 
 impl MethodRun {
-    /// Shots taken (the run may stop early at its threshold).
+    /// Shots taken (the run may stop early at its threshold, or when the host asks it to stop
+    /// soon).
     pub fn shots_taken(&self) -> usize {
         self.solution.shots.len()
+    }
+
+    /// Whether the host's request to stop soon (`pxpl5_machine::Stop::Soon`, a Ctrl-C) ended the
+    /// run before its shots: its solution holds the shots taken, each complete.
+    pub fn partial(&self) -> bool {
+        self.solution.stopped
     }
 }
 
 /// Progressive refinement of `patches` on the machine of `cfg` with `settings`, recording traces
-/// with `recorder`.
+/// with `recorder`. The monitor of `settings.run`, if any, is the program's too: GP 0 publishes
+/// the shots taken there, and ends the run between shots if asked to stop soon.
 pub fn run(
     cfg: &MachineConfig,
     patches: &[Patch],
@@ -102,6 +111,7 @@ pub fn run(
     );
     program.item_shots = settings.item_shots.clone();
     program.shooters_at_once = settings.shooters_at_once;
+    program.monitor = settings.run.monitor.clone();
     if let Some(reference) = &settings.reference {
         let mut observer = Observer::default();
         if let Some(target) = settings.target_error {
@@ -183,7 +193,7 @@ pub struct MachineFormFactor {
 
 /// The form factor from `point` with unit `normal` to the planar convex `polygon`, computed on
 /// the machine of `cfg` with `options` (the polygon is seen from whichever side faces the
-/// point). The exact value is [`crate::exact::point_to_polygon`].
+/// point), the machine run with `run`. The exact value is [`crate::exact::point_to_polygon`].
 ///
 /// The machine is given the polygon in the point's frame, [`point_frame`]: F does not change,
 /// and the machine's arithmetic then never sees coordinates whose squares overflow or underflow.
@@ -193,6 +203,7 @@ pub fn form_factor(
     normal: DVec3,
     polygon: Vec<DVec3>,
     options: FfOptions,
+    run: RunOptions,
 ) -> Result<MachineFormFactor, RunError> {
     let result = Rc::new(RefCell::new(FormFactorResult::default()));
     let program = FormFactorProgram {
@@ -202,7 +213,7 @@ pub fn form_factor(
         options,
         result: result.clone(),
     };
-    let run = Machine::new(cfg, &program, RunOptions::default(), Recorder::default())?.run()?;
+    let run = Machine::new(cfg, &program, run, Recorder::default())?.run()?;
     let form_factor = result.borrow().form_factors[0];
     Ok(MachineFormFactor {
         form_factor,

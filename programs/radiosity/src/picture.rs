@@ -155,15 +155,16 @@ pub fn triangle_scene(patches: &[Patch], s: &Solution, camera: Camera) -> Triang
 }
 
 /// The solution `s` seen from `camera`, drawn by the polygon program on the machine of `cfg`
-/// ([`triangle_scene`]); the picture is the result's `frame`.
+/// ([`triangle_scene`]) run with `options`; the picture is the result's `frame`.
 pub fn render(
     cfg: &MachineConfig,
     patches: &[Patch],
     s: &Solution,
     camera: Camera,
+    options: RunOptions,
 ) -> Result<RunResult, RunError> {
     let program = Polygons::new(triangle_scene(patches, s, camera));
-    Machine::new(cfg, &program, RunOptions::default(), Recorder::default())?.run()
+    Machine::new(cfg, &program, options, Recorder::default())?.run()
 }
 
 /// An item buffer as a picture: one colour per ID (a multiplicative hash, lightened so that no

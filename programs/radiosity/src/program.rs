@@ -7,14 +7,17 @@
 //!   unshot power to GP 0, which picks the shooter and tells everyone; the GPs compute the
 //!   shot's form factors together ([`crate::shot::shoot`]); partial sums go to the receivers'
 //!   owners, which update radiosity and unshot radiosity (reciprocity F_ji = F_ij A_i / A_j,
-//!   clamped to 1, clamps counted). Everything is charged to the machine.
+//!   clamped to 1, clamps counted). Everything is charged to the machine. GP 0 tells the run's
+//!   [`Monitor`] the shots taken, and ends the run between shots when the host asks it to stop
+//!   soon (a Ctrl-C), marking the solution [`Solution::stopped`].
 
 use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::rc::Rc;
+use std::sync::Arc;
 
 use pxpl5_geom::DVec3;
-use pxpl5_machine::{Cost, Gp, GpFuture, Op, Program, ProgramError, Record};
+use pxpl5_machine::{Cost, Gp, GpFuture, Monitor, Op, Program, ProgramError, Record, Stop};
 use pxpl5_sim::Tick;
 
 use crate::mesh::Patch;
@@ -230,6 +233,9 @@ pub struct Solution {
     pub converged: bool,
     /// Whether the observer's target stopped the run ([`Observer::target`]).
     pub target_reached: bool,
+    /// Whether the host's request to stop soon ended the run before its shots (the solution is
+    /// then partial: the shots taken, each complete).
+    pub stopped: bool,
 }
 
 /// What the host watches of a run, outside simulated time (no GP pays for it, nothing simulated
@@ -304,6 +310,10 @@ pub struct RadiosityProgram {
     pub item_buffers: Rc<RefCell<Vec<(usize, ItemBuffers)>>>,
     /// The host's view of the run, batch by batch (none by default).
     pub observer: Option<Rc<RefCell<Observer>>>,
+    /// The run's monitor (the same as the machine's): GP 0 publishes the shots taken there and
+    /// reads whether to stop soon. Host-side only: no simulated result depends on it unless a
+    /// stop is asked.
+    pub monitor: Option<Arc<Monitor>>,
 }
 
 impl RadiosityProgram {
@@ -325,6 +335,7 @@ impl RadiosityProgram {
             item_shots: Vec::new(),
             item_buffers: Rc::default(),
             observer: None,
+            monitor: None,
         }
     }
 }
@@ -397,6 +408,7 @@ struct GpSolution {
     reciprocity_clamps: u64,
     converged: bool,
     target_reached: bool,
+    stopped: bool,
 }
 
 impl GpSolution {
@@ -410,6 +422,7 @@ impl GpSolution {
         out.reciprocity_clamps += self.reciprocity_clamps;
         out.converged |= self.converged;
         out.target_reached |= self.target_reached;
+        out.stopped |= self.stopped;
         add_culls(&mut out.culls, culls);
     }
 }
@@ -428,6 +441,7 @@ impl Program for RadiosityProgram {
         let item_buffers = self.item_buffers.clone();
         let observer = self.observer.clone();
         let at_once = self.shooters_at_once.max(1);
+        let monitor = self.monitor.clone().filter(|_| gp.index() == 0);
         Box::pin(async move {
             let (g, gps) = (gp.index() as usize, gp.gp_count() as usize);
             if patches.len() >= u16::MAX as usize {
@@ -453,6 +467,7 @@ impl Program for RadiosityProgram {
                 reciprocity_clamps: 0,
                 converged: false,
                 target_reached: false,
+                stopped: false,
             };
             let mut culls = CullCounts::default();
             let mut w_tables = WTables::default();
@@ -465,10 +480,16 @@ impl Program for RadiosityProgram {
                 let batch = at_once.min(shots - taken);
                 let _shot = tracing::debug_span!("shot", gp = g, first = taken).entered();
                 gp.phase("select");
-                // GP 0 asks the observer once every GP's update of the last batch is in: their
-                // proposals, sent after it, have all arrived when GP 0 picks.
+                // GP 0 stops the run by picking no shooter: when the host asks it to stop soon
+                // (the monitor), or once the observer's target holds (asked once every GP's
+                // update of the last batch is in: their proposals, sent after it, have all
+                // arrived). Not when asked to stop now: the machine is about to stop with an
+                // error, and the run must not pass for one that ended early.
+                let soon = monitor
+                    .as_ref()
+                    .is_some_and(|m| m.requested() == Stop::Soon);
                 let stop = || {
-                    observer
+                    soon || observer
                         .as_ref()
                         .is_some_and(|o| o.borrow().target_reached())
                 };
@@ -478,11 +499,12 @@ impl Program for RadiosityProgram {
                     threshold,
                     scale,
                 };
-                let (picks, reached) =
+                let (picks, stopped) =
                     select(&gp, &patches, &owned, &mine, limits, &mut scales, stop).await;
                 if picks.is_empty() {
-                    mine.converged = g == 0 && !reached;
-                    mine.target_reached = g == 0 && reached;
+                    mine.converged = g == 0 && !stopped;
+                    mine.target_reached = g == 0 && stopped && !soon;
+                    mine.stopped = soon;
                     break;
                 }
                 let shooters: Vec<Shooter> = picks
@@ -549,6 +571,9 @@ impl Program for RadiosityProgram {
                 }
                 batches += 1;
                 taken += picks.len();
+                if let Some(m) = &monitor {
+                    m.set_done(taken as u64);
+                }
             }
             mine.publish(&owned, &culls, &mut output.borrow_mut());
             gp.phase("done");

@@ -4,7 +4,7 @@
 //! the machine near the exact value; both methods converging to the empty box's reference.
 
 use pxpl5_geom::DVec3;
-use pxpl5_machine::Recorder;
+use pxpl5_machine::{Recorder, RunOptions};
 use pxpl5_radiosity::accuracy::Reference;
 use pxpl5_radiosity::comparison::Comparison;
 use pxpl5_radiosity::experiment::{self, Settings};
@@ -72,7 +72,14 @@ fn both_methods_compared_and_pictured() {
     assert_eq!(c.hemicube_over_hemisphere_to_target(), None);
 
     let camera = scene.camera.clone().expect("the Cornell box has a camera");
-    let drawn = picture::render(&cfg, &patches, &runs[1].solution, camera).expect("draws");
+    let drawn = picture::render(
+        &cfg,
+        &patches,
+        &runs[1].solution,
+        camera,
+        RunOptions::default(),
+    )
+    .expect("draws");
     let lit = drawn
         .frame
         .rgb
@@ -169,8 +176,15 @@ fn one_form_factor_on_the_machine() {
             method,
             ..FfOptions::default()
         };
-        let got =
-            experiment::form_factor(&cfg, point, normal, square.clone(), options).expect("runs");
+        let got = experiment::form_factor(
+            &cfg,
+            point,
+            normal,
+            square.clone(),
+            options,
+            RunOptions::default(),
+        )
+        .expect("runs");
         assert!(
             (got.form_factor - want).abs() < 0.01 * want,
             "{method:?}: {} vs {want}",
@@ -178,4 +192,70 @@ fn one_form_factor_on_the_machine() {
         );
         assert!(got.stats.end.as_secs_f64() > 0.0);
     }
+}
+
+/// A monitor sees every shot and changes nothing; asked to stop soon, the run ends between
+/// shots, marked partial and not converged, its solution that of the shots taken; asked to stop
+/// now, it fails.
+#[test]
+fn a_monitored_run_counts_its_shots_and_stops_between_them_when_asked() {
+    use std::sync::Arc;
+
+    use pxpl5_machine::{Monitor, Stop};
+    let cfg = pxpl5_config::default_config();
+    let patches = mesh(&scenes::cornell_box(), 300.0).expect("the Cornell box meshes");
+    let settings = |monitor: Option<Arc<Monitor>>| Settings {
+        ff: FfOptions {
+            resolution: 32,
+            ..FfOptions::default()
+        },
+        shots: 2,
+        threshold: 0.0,
+        run: RunOptions {
+            monitor,
+            ..Settings::default().run
+        },
+        ..Settings::default()
+    };
+    let run = |monitor| {
+        experiment::run(&cfg, &patches, &settings(monitor), Recorder::default()).expect("runs")
+    };
+    let plain = run(None);
+    let monitor = Arc::new(Monitor::default());
+    let watched = run(Some(monitor.clone()));
+    assert_eq!(
+        watched.stats.to_json().to_string(),
+        plain.stats.to_json().to_string()
+    );
+    assert_eq!(watched.solution.radiosity, plain.solution.radiosity);
+    assert_eq!((plain.shots_taken(), plain.partial()), (2, false));
+    assert_eq!((monitor.done(), monitor.reached()), (2, plain.stats.end));
+
+    // Asked before the first shot: none is taken, the emission is the whole solution.
+    let monitor = Arc::new(Monitor::default());
+    monitor.request(Stop::Soon);
+    let stopped = run(Some(monitor.clone()));
+    assert_eq!((stopped.shots_taken(), stopped.partial()), (0, true));
+    assert!(!stopped.solution.converged);
+    let emission: Vec<[f64; 3]> = patches.iter().map(|p| p.emission).collect();
+    assert_eq!(stopped.solution.radiosity, emission);
+    assert_eq!(monitor.done(), 0);
+    assert!(stopped.stats.end < plain.stats.end);
+    let c = Comparison::new(&cfg, "cornell", (patches.len(), 300.0), (32, 1), &[stopped]);
+    assert!(c.methods[0].partial);
+
+    // Asked to stop now, the run fails: it never passes for one that ended early.
+    let monitor = Arc::new(Monitor::default());
+    monitor.request(Stop::Soon);
+    monitor.request(Stop::Now);
+    let r = experiment::run(
+        &cfg,
+        &patches,
+        &settings(Some(monitor)),
+        Recorder::default(),
+    );
+    assert!(
+        matches!(r, Err(pxpl5_machine::RunError::Stopped { .. })),
+        "a run asked to stop now ended without an error"
+    );
 }

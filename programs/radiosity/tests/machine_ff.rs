@@ -567,7 +567,8 @@ fn form_factor_on_the_machine_is_the_same_at_any_power_of_two_scale() {
     let n = DVec3::new(0.0, 0.0, 1.0);
     let poly = square(p + DVec3::new(0.1, 0.2, 1.0), 0.6, p);
     let opts = options(Method::Hemisphere, 64);
-    let base = experiment::form_factor(&cfg, p, n, poly.clone(), opts).expect("runs");
+    let base = experiment::form_factor(&cfg, p, n, poly.clone(), opts, RunOptions::default())
+        .expect("runs");
     assert!(base.form_factor > 0.1, "{}", base.form_factor);
     assert_eq!(
         machine_ff(p, n, vec![poly.clone()], opts),
@@ -576,7 +577,8 @@ fn form_factor_on_the_machine_is_the_same_at_any_power_of_two_scale() {
     for k in [600, -600] {
         let s = 2f64.powi(k);
         let scaled: Vec<DVec3> = poly.iter().map(|&v| v * s).collect();
-        let run = experiment::form_factor(&cfg, p * s, n, scaled, opts).expect("runs");
+        let run = experiment::form_factor(&cfg, p * s, n, scaled, opts, RunOptions::default())
+            .expect("runs");
         assert_eq!(run.form_factor, base.form_factor, "2^{k}");
         assert_eq!(run.stats.end, base.stats.end, "2^{k}");
     }

@@ -4,6 +4,7 @@
 //! rings of pixels.
 
 use pxpl5_geom::DVec3;
+use pxpl5_machine::RunOptions;
 use pxpl5_radiosity::exact::point_to_polygon;
 use pxpl5_radiosity::experiment;
 use pxpl5_radiosity::shot::{FfOptions, Method};
@@ -37,9 +38,16 @@ fn relative_error(e0: f64, e1: f64, resolution: u32) -> f64 {
             rotation: None,
             ..FfOptions::default()
         };
-        machine += experiment::form_factor(&cfg, DVec3::ZERO, DVec3::Z, polygon, options)
-            .expect("runs")
-            .form_factor;
+        machine += experiment::form_factor(
+            &cfg,
+            DVec3::ZERO,
+            DVec3::Z,
+            polygon,
+            options,
+            RunOptions::default(),
+        )
+        .expect("runs")
+        .form_factor;
     }
     machine / exact - 1.0
 }
