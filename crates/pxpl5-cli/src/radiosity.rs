@@ -391,9 +391,13 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
         }
         contents.push(pcsv.into_bytes());
         if let Some(c) = &run.convergence {
-            let mut ccsv = format!("# {stamp}\nbatch,shots,simulated_s,worst_surface_error\n");
-            for (k, (t, shots, e)) in c.curve.iter().enumerate() {
-                ccsv += &format!("{k},{shots},{t:.9},{e:.6}\n");
+            let mut ccsv =
+                format!("# {stamp}\nbatch,shots,simulated_s,worst_surface_error,unshot_fraction\n");
+            for (k, p) in c.curve.iter().enumerate() {
+                ccsv += &format!(
+                    "{k},{},{:.9},{:.6},{:.6e}\n",
+                    p.shots, p.seconds, p.error, p.unshot
+                );
             }
             contents.push(ccsv.into_bytes());
         }
@@ -606,6 +610,18 @@ fn table(c: &Comparison, host_seconds: &[f64], asked: usize) -> String {
                     None => "-".to_string(),
                 },
             ),
+        );
+        // What a user without a reference can watch: the unshot power left when the error
+        // reached the target (`--threshold` compares the largest patch's with it).
+        t += &row(
+            "unshot power left at target",
+            each(&|m| {
+                let reached = m.convergence.as_ref().and_then(|c| {
+                    let (_, n) = c.time_to_target?;
+                    c.curve.iter().find(|p| p.shots == n)
+                });
+                reached.map_or("-".to_string(), |p| pct(p.unshot))
+            }),
         );
     }
     if m0.convergence.is_some() {

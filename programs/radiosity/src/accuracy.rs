@@ -31,6 +31,9 @@ pub struct Reference {
     means: Vec<[f64; 3]>,
     /// The exact form factors, F[i][j] from the centre of patch i to patch j.
     form_factors: Vec<Vec<f64>>,
+    /// The power the scene emits: sum of area x (E_R + E_G + E_B), as progressive refinement
+    /// counts unshot power.
+    emitted: f64,
 }
 
 /// A solution's worst surface error.
@@ -58,6 +61,10 @@ impl Reference {
             names: scene.surfaces.iter().map(|s| s.name.clone()).collect(),
             means: Vec::new(),
             form_factors,
+            emitted: patches
+                .iter()
+                .map(|p| p.area * p.emission.iter().sum::<f64>())
+                .sum(),
         };
         r.means = r.surface_means(&direct);
         Some(r)
@@ -105,6 +112,22 @@ impl Reference {
         worst
     }
 
+    /// The unshot power of `unshot` (one entry per patch) over the emitted power: the fraction
+    /// `--threshold` compares the largest patch's with.
+    pub fn unshot_fraction(&self, unshot: &[[f64; 3]]) -> f64 {
+        let power: f64 = self
+            .area
+            .iter()
+            .zip(unshot)
+            .map(|(a, u)| a * u.iter().sum::<f64>())
+            .sum();
+        if self.emitted > 0.0 {
+            power / self.emitted
+        } else {
+            0.0
+        }
+    }
+
     /// The relative L1 error of a machine-computed row of form factors from patch `shooter`.
     pub fn form_factor_error(&self, shooter: usize, row: &[f64]) -> f64 {
         let exact = &self.form_factors[shooter];
@@ -114,11 +137,24 @@ impl Reference {
     }
 }
 
+/// One batch of a run, as its accuracy saw it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Point {
+    /// Simulated seconds at the batch's end.
+    pub seconds: f64,
+    /// Shots so far.
+    pub shots: usize,
+    /// The worst surface error after the batch.
+    pub error: f64,
+    /// The unshot power left, over the emitted power ([`Reference::unshot_fraction`]): what a
+    /// user without a reference can watch, beside the error it corresponds to.
+    pub unshot: f64,
+}
+
 /// A run's accuracy over its batches, against a reference.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Convergence {
-    /// Per batch: simulated seconds at its end, shots so far, worst surface error after it.
-    pub curve: Vec<(f64, usize, f64)>,
+    pub curve: Vec<Point>,
     /// The first batch within `target`: (simulated seconds, shots), if any.
     pub time_to_target: Option<(f64, usize)>,
     pub target: f64,
@@ -137,8 +173,12 @@ impl Convergence {
         let (mut ff_sum, mut ff_n) = (0.0, 0usize);
         for b in batches {
             shots += b.shooters.len();
-            let e = reference.surface_error(&b.radiosity).worst;
-            curve.push((b.end.as_secs_f64(), shots, e));
+            curve.push(Point {
+                seconds: b.end.as_secs_f64(),
+                shots,
+                error: reference.surface_error(&b.radiosity).worst,
+                unshot: reference.unshot_fraction(&b.unshot),
+            });
             for (&i, row) in b.shooters.iter().zip(&b.form_factors) {
                 ff_sum += reference.form_factor_error(i, row);
                 ff_n += 1;
@@ -146,8 +186,8 @@ impl Convergence {
         }
         let time_to_target = curve
             .iter()
-            .find(|(_, _, e)| *e <= target)
-            .map(|&(t, n, _)| (t, n));
+            .find(|p| p.error <= target)
+            .map(|p| (p.seconds, p.shots));
         Convergence {
             time_to_target,
             target,

@@ -263,6 +263,8 @@ pub struct Batch {
     pub shooters: Vec<usize>,
     /// Every patch's radiosity after the batch.
     pub radiosity: Vec<[f64; 3]>,
+    /// Every patch's unshot radiosity after the batch.
+    pub unshot: Vec<[f64; 3]>,
     /// Per shooter, the form factor from it to every patch as the machine computed it (0 for
     /// a patch it did not see).
     pub form_factors: Vec<Vec<f64>>,
@@ -274,6 +276,7 @@ impl Observer {
         while self.batches.len() <= k {
             self.batches.push(Batch {
                 radiosity: vec![[0.0; 3]; patches],
+                unshot: vec![[0.0; 3]; patches],
                 form_factors: vec![vec![0.0; patches]; shooters],
                 ..Batch::default()
             });
@@ -562,6 +565,7 @@ impl Program for RadiosityProgram {
                     let b = o.batch(batches, patches.len(), picks.len());
                     for &j in &owned {
                         b.radiosity[j] = mine.radiosity[j];
+                        b.unshot[j] = mine.unshot[j];
                     }
                     for (&(k, j), &f) in &factors {
                         b.form_factors[k][j] = f;

@@ -121,8 +121,12 @@ fn both_methods_converge_to_the_reference_within_one_percent() {
         );
         // The run stopped at the first batch within 1 %: the last, and the one before is not.
         let n = conv.curve.len();
-        assert_eq!((t, shots), (conv.curve[n - 1].0, conv.curve[n - 1].1));
-        assert!(conv.curve[n - 1].2 <= 0.01 && conv.curve[n - 2].2 > 0.01);
+        let (last, before) = (conv.curve[n - 1], conv.curve[n - 2]);
+        assert_eq!((t, shots), (last.seconds, last.shots));
+        assert!(last.error <= 0.01 && before.error > 0.01);
+        // The unshot power falls shot by shot; at 1 % a few percent of the emitted power is left.
+        assert!(conv.curve.windows(2).all(|w| w[1].unshot < w[0].unshot));
+        assert!(last.unshot > 0.001 && last.unshot < 0.2, "{}", last.unshot);
         assert_eq!(shots, run.shots_taken());
         // The curve's figure is the reference's verdict on the solution the run returns.
         let last = reference.surface_error(&run.solution.radiosity);
