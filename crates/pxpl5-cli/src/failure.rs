@@ -24,7 +24,8 @@ Exit codes:
        is lost)
   1    a simulation that failed: a deadlock, --time-limit (simulated) or --host-time-limit
        reached, a program's error on the machine; the message says where the run was
-       (simulated time, shots done, the units still running); nothing is written
+       (simulated time, shots done, the units still running); nothing is written. For
+       `stats diff`: the two files differ (as diff(1) says it)
   2    a user's mistake: a bad config, scene or flag, an output that cannot be written (a
        directory where a file is expected, a full disk or device, stdout included), with the
        file, line, field or option at fault
@@ -47,13 +48,15 @@ pub enum Failure {
     SimulationFailed(String),
     /// Interrupted by the user (exit code 130).
     Interrupted(String),
+    /// `stats diff`: the files compared differ (exit code 1, as `diff` gives it).
+    Differs(String),
 }
 
 impl Failure {
     /// The process's exit code for this failure.
     pub fn exit_code(&self) -> u8 {
         match self {
-            Failure::SimulationFailed(_) => 1,
+            Failure::SimulationFailed(_) | Failure::Differs(_) => 1,
             Failure::UserMistake(_) => 2,
             Failure::Interrupted(_) => 130,
         }
@@ -62,7 +65,10 @@ impl Failure {
     /// What is printed on stderr.
     pub fn message(&self) -> &str {
         match self {
-            Failure::UserMistake(m) | Failure::SimulationFailed(m) | Failure::Interrupted(m) => m,
+            Failure::UserMistake(m)
+            | Failure::SimulationFailed(m)
+            | Failure::Interrupted(m)
+            | Failure::Differs(m) => m,
         }
     }
 }

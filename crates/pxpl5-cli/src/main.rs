@@ -24,6 +24,7 @@ mod logging;
 mod output;
 mod radiosity;
 mod run;
+mod stats_cmd;
 mod watch;
 
 use std::path::PathBuf;
@@ -65,6 +66,7 @@ impl Command {
             Command::Formfactor(_) => "formfactor",
             Command::Run(_) => "run",
             Command::Bench(BenchCommand::Renderer(_)) => "bench renderer",
+            Command::Stats(StatsCommand::Diff(_)) => "stats diff",
         }
     }
 }
@@ -89,6 +91,18 @@ enum Command {
     /// Renderer command stream.
     #[command(subcommand)]
     Bench(BenchCommand),
+    /// Work with saved statistics (stats.json, comparison.json, formfactor --json).
+    #[command(subcommand)]
+    Stats(StatsCommand),
+}
+
+#[derive(Subcommand)]
+enum StatsCommand {
+    /// Compare two runs' simulated figures: every figure that changed, was added or removed, with
+    /// both values and the change. Exit code 0 if none differs (beyond --tolerance), 1 if some
+    /// do, 2 if a file cannot be read or is not JSON: a CI job keeps one run's file and compares
+    /// every build's with it.
+    Diff(stats_cmd::DiffArgs),
 }
 
 #[derive(Subcommand)]
@@ -184,5 +198,6 @@ fn run_command(command: Option<Command>) -> Result<(), Failure> {
         Some(Command::Run(args)) => run::run(&args),
         Some(Command::Radiosity(args)) => radiosity::radiosity(&args),
         Some(Command::Formfactor(args)) => radiosity::formfactor(&args),
+        Some(Command::Stats(StatsCommand::Diff(args))) => stats_cmd::diff(&args),
     }
 }

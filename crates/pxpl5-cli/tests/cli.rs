@@ -1596,3 +1596,79 @@ fn ctrl_c_stops_run_at_once_and_writes_nothing() {
     assert_eq!(stdout, "");
     assert!(!d.exists(), "an interrupted run wrote {:?}", listing(&d));
 }
+
+/// `stats diff`: two runs of the same inputs have no figure apart (exit 0); a slower ring moves
+/// the simulated time, named with both values (exit 1); a tolerance wider than the change hides
+/// it; an unreadable file is a user's mistake (exit 2).
+#[test]
+fn stats_diff_names_what_changed_with_an_exit_code_ci_can_use() {
+    let (a, b, c) = (out_dir("diff-a"), out_dir("diff-b"), out_dir("diff-c"));
+    for d in [&a, &b] {
+        let out = run_small(d);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+    }
+    let seed = std::fs::read_to_string(root().join("machine-configs/minimal.ron")).unwrap();
+    let slow = seed.replace(
+        "channel_clock_hz: 20_000_000",
+        "channel_clock_hz: 10_000_000",
+    );
+    assert_ne!(slow, seed, "the minimal config names its ring clock");
+    let config = temp_file("diff-slow-ring.ron", &slow);
+    let mut args = SMALL_RUN.to_vec();
+    assert_eq!(args[1], "--config");
+    args[2] = config.to_str().unwrap();
+    args.extend(["--out", c.to_str().unwrap()]);
+    let out = pxpl5(&args);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let stats = |d: &Path| d.join("stats.json").to_str().unwrap().to_string();
+
+    let same = pxpl5(&["stats", "diff", &stats(&a), &stats(&b)]);
+    assert_eq!(same.status.code(), Some(0), "{}", text(&same.stderr));
+    assert!(text(&same.stdout).contains("no figure differs"));
+
+    let moved = pxpl5(&[
+        "stats",
+        "diff",
+        &stats(&a),
+        &stats(&c),
+        "--only",
+        "simulated_ps",
+    ]);
+    assert_eq!(moved.status.code(), Some(1), "{}", text(&moved.stderr));
+    let report = text(&moved.stdout);
+    let line = report
+        .lines()
+        .find(|l| l.starts_with("~ simulated_ps: "))
+        .unwrap_or_else(|| panic!("{report}"));
+    let values: Vec<u64> = line
+        .trim_start_matches("~ simulated_ps: ")
+        .split([' ', ','])
+        .filter_map(|w| w.parse().ok())
+        .collect();
+    assert!(values.len() >= 2 && values[1] > values[0], "{line}");
+    assert!(text(&moved.stderr).contains("1 of the figures differ"));
+    // A tolerance wider than the change hides it.
+    let wide = pxpl5(&[
+        "stats",
+        "diff",
+        &stats(&a),
+        &stats(&c),
+        "--only",
+        "simulated_ps",
+        "--tolerance",
+        "10",
+    ]);
+    assert_eq!(wide.status.code(), Some(0), "{}", text(&wide.stdout));
+
+    let missing = pxpl5(&["stats", "diff", &stats(&a), "/no/such/file.json"]);
+    assert_eq!(missing.status.code(), Some(2));
+    assert!(text(&missing.stderr).contains("/no/such/file.json: cannot read"));
+    let not_json = temp_file("diff-not.json", "{ nope");
+    let bad = pxpl5(&["stats", "diff", &stats(&a), not_json.to_str().unwrap()]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(
+        text(&bad.stderr).contains("not JSON (line 1"),
+        "{}",
+        text(&bad.stderr)
+    );
+}
