@@ -543,12 +543,13 @@ struct Setting {
 /// receivers it owns; each returns, per shooter, the partial sums of its band of every view.
 ///
 /// The views of all the shooters are scheduled as a list on the Renderers, without rounds: GP 0
-/// prepares a view on each board ([`Coordinator`]); when a board's set-up has executed GP 0 tells
-/// every GP to draw the view there; each GP draws its receivers, probes the board and, once its
-/// commands have executed, reports to GP 0; when every GP has, GP 0 orders the view's ID
+/// prepares a view on each board (`Coordinator`), and the set-up ends with one completion probe
+/// per GP, so the board itself tells every GP the view is ready; each GP draws its receivers and
+/// probes the board, the probe answering the board's coordinator (GP board mod G, `Gather`);
+/// once every GP's drawing has executed, the coordinator tells GP 0, which orders the view's ID
 /// readback in row bands (one per GP) and at once prepares the next view on the same board,
 /// whose commands the board runs after the readback. Every GP handles these events in the order
-/// they reach it ([`Event`]) until it has drawn every view and summed its band of each.
+/// they reach it (`Event`) until it has drawn every view and summed its band of each.
 pub async fn shoot(
     gp: &Gp,
     opts: &FfOptions,

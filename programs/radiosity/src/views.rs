@@ -154,7 +154,7 @@ pub const MAX_LAMBDA: f64 = (1u64 << (DEPTH_BITS - 1 - DEPTH_FRAC)) as f64;
 /// The frame scale of a shot (scene units per frame unit): the scene's size, unless a receiver's
 /// plane passes within `nearest` (scene units, > 0) of the shooter closer than the depth field
 /// allows, then `nearest` x [`MAX_LAMBDA`] / 4, so that every receiver's lambda, at most
-/// sqrt(3) / (its plane's distance) in frame units ([`receiver_plane`]), stays below
+/// sqrt(3) / (its plane's distance) in frame units (`receiver_plane`), stays below
 /// [`MAX_LAMBDA`] / 2. Form factors do not depend on the scale; depth's precision for far
 /// receivers does (2^-18 of lambda), which is why the scene's size stays the default.
 pub fn shot_scale(size: f64, nearest: f64) -> f64 {
