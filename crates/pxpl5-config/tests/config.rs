@@ -509,7 +509,7 @@ fn semantic_error_display_names_file_field_rule_and_value() {
     let err = parse_str("bad.ron", &text).expect_err("zero renderers");
     assert_eq!(
         err.to_string(),
-        "bad.ron: renderer.count: must be at least 1 (got 0)"
+        "bad.ron: renderer.count: must be in 1..=256 (got 0)"
     );
     assert_eq!(err.semantic_errors().len(), 1);
 }
