@@ -1,6 +1,12 @@
 //! The polygon program's geometry, shared by the GP code and the reference rasteriser: camera
-//! transform, near/far clipping, projection to the frame buffer's pixel grid, and the QEE
-//! expressions (edges, depth, colours) of a screen triangle in a region's local coordinates.
+//! transform, near/far clipping, a guard band, projection to the frame buffer's pixel grid, and the
+//! QEE expressions (edges, depth, colours) of a screen triangle in a region's local coordinates.
+//!
+//! **The guard band.** Triangles are also clipped to a band [`GUARD_BAND_PIXELS`] beyond each
+//! edge of the screen. Inside it nothing changes (no region's pixels lie there); without it, a
+//! vertex just past the near plane far off to one side, or a very narrow field of view, projects
+//! to coordinates so large that a triangle's area or plane overflows to infinity or NaN, which no
+//! QEE format can hold.
 //!
 //! Screen coordinates: x to the right, y up, pixel (x, y) sampled at its integer address (the
 //! projection puts pixel centres on integers). A region's Renderer works in local addresses
@@ -9,7 +15,7 @@
 
 use pxpl5_config::FixedFormat;
 use pxpl5_geom::{DVec3, vec3};
-use pxpl5_renderer::{QeeExpr, Window};
+use pxpl5_renderer::{QeeExpr, QuantiseError, Window};
 
 use crate::scene::{Camera, TriangleScene};
 
@@ -21,6 +27,12 @@ pub type V3 = [f64; 3];
 fn unit(a: DVec3) -> DVec3 {
     a / a.length()
 }
+
+/// How far beyond each edge of the screen triangles are kept, in pixels (see the module doc):
+/// 2^20, so that screen coordinates stay below about 2^21 whatever the camera or the scene, far
+/// inside what the area and plane computations hold exactly enough, and far outside the screens
+/// the frame buffer's 16-bit positions allow (65,536 pixels), so no visible pixel changes.
+pub const GUARD_BAND_PIXELS: f64 = 1_048_576.0;
 
 /// The camera as an orthonormal frame and a projection onto a `width` x `height` screen.
 #[derive(Clone, Debug)]
@@ -110,6 +122,30 @@ impl View {
                 },
             );
         }
+        // Against the guard band: |x| <= gx depth and |y| <= gy depth, the lines of sight through
+        // the band's edges (depth >= near > 0 here, so the planes are where they should be).
+        let gx = (self.width / 2.0 + GUARD_BAND_PIXELS) / self.focal;
+        let gy = (self.height / 2.0 + GUARD_BAND_PIXELS) / self.focal;
+        for (axis, g, sign) in [(0, gx, 1.0), (0, gx, -1.0), (1, gy, 1.0), (1, gy, -1.0)] {
+            // Inside where d >= 0; the crossing is where d is 0.
+            let d = |p: &V3| g * p[2] - sign * p[axis];
+            poly = pxpl5_geom::clip::clip(
+                &poly,
+                |(p, _)| d(p) >= 0.0,
+                |&(a, ca), &(b, cb)| {
+                    let (da, db) = (d(&a), d(&b));
+                    let t = da / (da - db);
+                    let lerp = |x: V3, y: V3| {
+                        [
+                            x[0] + t * (y[0] - x[0]),
+                            x[1] + t * (y[1] - x[1]),
+                            x[2] + t * (y[2] - x[2]),
+                        ]
+                    };
+                    (lerp(a, b), lerp(ca, cb))
+                },
+            );
+        }
         if poly.len() < 3 {
             return Vec::new();
         }
@@ -130,7 +166,11 @@ impl View {
                 xyz: [screen[0].0, screen[k].0, screen[k + 1].0],
                 rgb: [screen[0].1, screen[k].1, screen[k + 1].1],
             })
-            .filter(|t| signed_area(t) != 0.0)
+            // Not finite only for a camera the scene checks refuse; kept out all the same.
+            .filter(|t| {
+                let area = signed_area(t);
+                area != 0.0 && area.is_finite()
+            })
             .collect()
     }
 }
@@ -220,20 +260,24 @@ fn fits(v: f64, f: FixedFormat) -> f64 {
 
 /// The expressions of `t` for the region whose lower-left pixel is (x0, y0), or None when the
 /// triangle cannot touch the region. `side` is the Renderer's width (= height).
+///
+/// Coefficients are clamped to `format` (a format of at least one integer bit, as configs
+/// are checked to have), so the error is for input no checked scene and camera produce: a
+/// coordinate that is not finite.
 pub fn triangle_exprs(
     t: &ScreenTriangle,
     x0: u32,
     y0: u32,
     side: u32,
     format: FixedFormat,
-) -> Option<TriangleExprs> {
+) -> Result<Option<TriangleExprs>, QuantiseError> {
     let local: [V3; 3] = t
         .xyz
         .map(|v| [v[0] - f64::from(x0), v[1] - f64::from(y0), v[2]]);
     // Counter-clockwise: the interior is on the left of every edge.
     let ccw = signed_area(t) > 0.0;
     let max = f64::from(side);
-    let q = |c: [f64; 6]| QeeExpr::quantise(c, format).expect("coefficients are clamped to fit");
+    let q = |c: [f64; 6]| QeeExpr::quantise(c, format);
     let mut edges = Vec::new();
     for k in 0..3 {
         let (p, r) = if ccw {
@@ -254,15 +298,15 @@ pub fn triangle_exprs(
             continue;
         }
         if vals.iter().all(|v| *v < -0.5) {
-            return None;
+            return Ok(None);
         }
-        let e = q([a, b, fits(c, format), 0.0, 0.0, 0.0]);
+        let e = q([a, b, fits(c, format), 0.0, 0.0, 0.0])?;
         edges.push((e, e.sign_window((0, 0), side, side)));
     }
     let scale = f64::from(DEPTH_SCALE_LOG2).exp2();
     let max_slope = (format.int_bits as f64).exp2() / (4.0 * max);
     let [za, zb, zc] = plane(local.map(|v| [v[0], v[1], v[2] * scale]), max_slope);
-    let depth = q([za, zb, fits(zc, format), 0.0, 0.0, 0.0]);
+    let depth = q([za, zb, fits(zc, format), 0.0, 0.0, 0.0])?;
     let colour = |k: usize| {
         let [a, b, c] = plane(
             [0, 1, 2].map(|i| [local[i][0], local[i][1], t.rgb[i][k] + 0.5]),
@@ -270,9 +314,9 @@ pub fn triangle_exprs(
         );
         q([a, b, fits(c, format), 0.0, 0.0, 0.0])
     };
-    Some(TriangleExprs {
+    Ok(Some(TriangleExprs {
         edges,
         depth,
-        colours: [colour(0), colour(1), colour(2)],
-    })
+        colours: [colour(0)?, colour(1)?, colour(2)?],
+    }))
 }
