@@ -18,6 +18,7 @@ use pxpl5_radiosity::comparison::{Comparison, SEED_RATIO};
 use pxpl5_radiosity::experiment::{self, MethodRun, Settings};
 use pxpl5_radiosity::mesh::{Patch, mesh};
 use pxpl5_radiosity::picture;
+use pxpl5_radiosity::program::MAX_MACHINE_PATCHES;
 use pxpl5_radiosity::scene::RadiosityScene;
 use pxpl5_radiosity::shot::{FfOptions, Method, check_resolution};
 
@@ -42,14 +43,18 @@ pub struct RadiosityArgs {
     /// Shots (shooting patches, the seed's N).
     #[arg(long, default_value_t = 6)]
     pub shots: usize,
-    /// Stop early when max unshot power / emitted power falls below this.
-    #[arg(long, default_value_t = 0.001)]
+    /// Stop early when max unshot power / emitted power falls below this (a finite number >= 0).
+    #[arg(long, default_value_t = 0.001, value_parser = non_negative_finite)]
     pub threshold: f64,
-    /// Patch size in scene units (the Cornell box is in millimetres).
-    #[arg(long, default_value_t = 90.0)]
+    /// Patch size in scene units (the Cornell box is in millimetres); the mesh may have at most
+    /// 65,534 patches (the machine's 16-bit patch IDs).
+    #[arg(long, default_value_t = 90.0, value_parser = positive_finite)]
     pub patch_size: f64,
-    /// Pixels across the hemisphere's disk and the hemicube's top face.
-    #[arg(long, default_value_t = 128)]
+    /// Pixels across the hemisphere's disk and the hemicube's top face, 1 to 4096; the machine
+    /// limits it further (a disk of N pixels needs ceil(N / 128)^2 Renderers of 128 x 128; a
+    /// hemicube face must fit one Renderer, and N must be even).
+    #[arg(long, default_value_t = 128,
+          value_parser = clap::value_parser!(u32).range(1..=MAX_RESOLUTION))]
     pub resolution: u32,
     /// Hemisphere edge rule: sign-of-c (docs/radiosity.md section 3) or seed (TR89-002's
     /// CASE 1 / CASE 2).
@@ -176,7 +181,26 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
         Some(p) => pxpl5_radiosity::scene::load_radiosity_scene(p).map_err(config_cmd::report)?,
         None => pxpl5_radiosity::scenes::cornell_box(),
     };
-    let patches = mesh(&scene, args.patch_size).map_err(|e| UserError(e.to_string()))?;
+    let patches = mesh(&scene, args.patch_size)
+        .map_err(|e| UserError(format!("--patch-size {:?}: {e}", args.patch_size)))?;
+    if patches.len() > MAX_MACHINE_PATCHES {
+        return Err(UserError(format!(
+            "--patch-size {:?}: makes {} patches, more than the {MAX_MACHINE_PATCHES} the \
+             machine's 16-bit patch IDs can name; use a larger patch size",
+            args.patch_size,
+            patches.len()
+        )));
+    }
+    for method in args.method.methods() {
+        check_resolution(method, args.resolution, cfg.renderer.count, &cfg.renderer)
+            .map_err(|e| UserError(format!("--resolution {}: {e}", args.resolution)))?;
+    }
+    if scene.camera.is_some() {
+        // The picture is drawn by the polygon program: refuse a machine it cannot draw on now,
+        // not after the radiosity runs.
+        pxpl5_polygons::check_machine(&cfg.renderer)
+            .map_err(|e| UserError(format!("the picture of the solution: {e}")))?;
+    }
 
     // Check every destination before the first run.
     output::check_dir("--out", &args.out)?;
@@ -412,7 +436,34 @@ pub fn number(x: f64) -> String {
     }
 }
 
-fn parse_v3(what: &str, s: &str) -> Result<DVec3, UserError> {
+/// A finite number > 0, for clap.
+pub fn positive_finite(s: &str) -> Result<f64, String> {
+    let x = finite(s)?;
+    if x > 0.0 {
+        Ok(x)
+    } else {
+        Err(format!("`{s}` must be > 0"))
+    }
+}
+
+/// A finite number >= 0, for clap.
+pub fn non_negative_finite(s: &str) -> Result<f64, String> {
+    let x = finite(s)?;
+    if x >= 0.0 {
+        Ok(x)
+    } else {
+        Err(format!("`{s}` must be >= 0"))
+    }
+}
+
+fn finite(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(x) if x.is_finite() => Ok(x),
+        _ => Err(format!("`{s}` is not a finite number")),
+    }
+}
+
+pub(crate) fn parse_v3(what: &str, s: &str) -> Result<DVec3, UserError> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     let bad = || UserError(format!("{what}: `{s}` is not three finite numbers X,Y,Z"));
     if parts.len() != 3 {

@@ -10,6 +10,7 @@ mod frame_buffer;
 pub mod gp;
 mod gp_node;
 mod machine;
+pub mod memory;
 mod record;
 mod renderer_node;
 mod run;
@@ -22,6 +23,7 @@ pub use gp::{
     ProgramError, Record, Tag, Unit,
 };
 pub use machine::Machine;
+pub use memory::{MemoryError, MemoryEstimate};
 pub use record::Recorder;
 pub use run::{RunError, RunOptions, RunResult};
 pub use stats::{GpStats, PhaseSpan, RendererNodeStats, RunStats};
