@@ -1,12 +1,11 @@
 //! The polygon program's geometry, shared by the GP code and the reference rasteriser: camera
-//! transform, near/far clipping, a guard band, projection to the frame buffer's pixel grid, and the
-//! QEE expressions (edges, depth, colours) of a screen triangle in a region's local coordinates.
+//! transform, near/far clipping, projection to the frame buffer's pixel grid, and the QEE
+//! expressions (edges, depth, colours) of a screen triangle in a region's local coordinates.
 //!
-//! **The guard band.** Triangles are also clipped to a band [`GUARD_BAND_PIXELS`] beyond each
-//! edge of the screen. Inside it nothing changes (no region's pixels lie there); without it, a
-//! vertex just past the near plane far off to one side, or a very narrow field of view, projects
-//! to coordinates so large that a triangle's area or plane overflows to infinity or NaN, which no
-//! QEE format can hold.
+//! Projected coordinates are finite for every scene the checks accept (`scene::MAX_COORDINATE`,
+//! `scene::MIN_FOV_DEGREES`: at most about 1e25 pixels, whose areas and planes stay far inside
+//! an f64); a screen triangle whose area is not finite (a camera the checks refuse) is dropped,
+//! and one whose expressions still cannot be quantised is an error, never a panic.
 //!
 //! Screen coordinates: x to the right, y up, pixel (x, y) sampled at its integer address (the
 //! projection puts pixel centres on integers). A region's Renderer works in local addresses
@@ -27,12 +26,6 @@ pub type V3 = [f64; 3];
 fn unit(a: DVec3) -> DVec3 {
     a / a.length()
 }
-
-/// How far beyond each edge of the screen triangles are kept, in pixels (see the module doc):
-/// 2^20, so that screen coordinates stay below about 2^21 whatever the camera or the scene, far
-/// inside what the area and plane computations hold exactly enough, and far outside the screens
-/// the frame buffer's 16-bit positions allow (65,536 pixels), so no visible pixel changes.
-pub const GUARD_BAND_PIXELS: f64 = 1_048_576.0;
 
 /// The camera as an orthonormal frame and a projection onto a `width` x `height` screen.
 #[derive(Clone, Debug)]
@@ -122,30 +115,6 @@ impl View {
                 },
             );
         }
-        // Against the guard band: |x| <= gx depth and |y| <= gy depth, the lines of sight through
-        // the band's edges (depth >= near > 0 here, so the planes are where they should be).
-        let gx = (self.width / 2.0 + GUARD_BAND_PIXELS) / self.focal;
-        let gy = (self.height / 2.0 + GUARD_BAND_PIXELS) / self.focal;
-        for (axis, g, sign) in [(0, gx, 1.0), (0, gx, -1.0), (1, gy, 1.0), (1, gy, -1.0)] {
-            // Inside where d >= 0; the crossing is where d is 0.
-            let d = |p: &V3| g * p[2] - sign * p[axis];
-            poly = pxpl5_geom::clip::clip(
-                &poly,
-                |(p, _)| d(p) >= 0.0,
-                |&(a, ca), &(b, cb)| {
-                    let (da, db) = (d(&a), d(&b));
-                    let t = da / (da - db);
-                    let lerp = |x: V3, y: V3| {
-                        [
-                            x[0] + t * (y[0] - x[0]),
-                            x[1] + t * (y[1] - x[1]),
-                            x[2] + t * (y[2] - x[2]),
-                        ]
-                    };
-                    (lerp(a, b), lerp(ca, cb))
-                },
-            );
-        }
         if poly.len() < 3 {
             return Vec::new();
         }
@@ -166,7 +135,7 @@ impl View {
                 xyz: [screen[0].0, screen[k].0, screen[k + 1].0],
                 rgb: [screen[0].1, screen[k].1, screen[k + 1].1],
             })
-            // Not finite only for a camera the scene checks refuse; kept out all the same.
+            // Not finite only for a camera the scene checks refuse (see the module doc).
             .filter(|t| {
                 let area = signed_area(t);
                 area != 0.0 && area.is_finite()
