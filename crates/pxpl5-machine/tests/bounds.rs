@@ -1,0 +1,239 @@
+//! The machine at the edges of what a valid config allows (issue 9): the largest costs at the
+//! slowest clocks end a run at its time limit, never in an overflow panic or a wrapped time; and
+//! the host-memory estimate that commands check before building a machine.
+
+use pxpl5_config::{MAX_COST_CYCLES, MAX_UNITS, MachineConfig};
+use pxpl5_machine::memory::{DEFAULT_LIMIT, check, estimate, format_size};
+use pxpl5_machine::{
+    Gp, GpFuture, Machine, Op, Payload, Program, Recorder, RunError, RunOptions, Unit,
+};
+use pxpl5_renderer::{Command, Fidelity, Field, Rect};
+use pxpl5_sim::Tick;
+
+fn shipped(name: &str) -> MachineConfig {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../machine-configs")
+        .join(name);
+    pxpl5_config::load_file(&path).expect("shipped config")
+}
+
+const VALUE: Field = Field {
+    offset: 0,
+    bits: 32,
+    signed: false,
+};
+
+/// Every GP charges every operation, GP 0 drives Renderer 0 through every kind of cost (a
+/// write, a backing-store transfer, a fence, a readback to itself) and the others send it data.
+struct EveryCost;
+
+impl Program for EveryCost {
+    fn name(&self) -> &str {
+        "every-cost"
+    }
+
+    fn gp_main(&self, gp: Gp) -> GpFuture {
+        Box::pin(async move {
+            for op in [
+                Op::VertexTransform,
+                Op::ClipTest,
+                Op::PolygonSetup,
+                Op::EdgeSetup,
+                Op::CommandEncode,
+                Op::FfAccumulatePerPixel,
+                Op::WTableEntry,
+                Op::RadiosityUpdatePerPatch,
+            ] {
+                gp.compute(op, 1 << 20).await;
+            }
+            if gp.index() != 0 {
+                gp.send(
+                    Unit::Gp(0),
+                    Payload::Data {
+                        tag: 1,
+                        values: vec![1.0],
+                        words: 2,
+                    },
+                )
+                .await;
+                return Ok(());
+            }
+            let rect = Rect {
+                x: 0,
+                y: 0,
+                width: 4,
+                height: 2,
+            };
+            gp.send_commands(
+                0,
+                vec![
+                    Command::enable_all(),
+                    Command::WriteConst {
+                        dst: VALUE,
+                        value: 7,
+                    },
+                    Command::Save {
+                        field: VALUE,
+                        block: 0,
+                    },
+                    Command::Fence,
+                    Command::Readback {
+                        field: VALUE,
+                        rect,
+                        dest: Unit::Gp(0).encode(),
+                        tag: 0,
+                    },
+                ],
+            )
+            .await;
+            for _ in 0..gp.gp_count() {
+                gp.recv().await;
+            }
+            Ok(())
+        })
+    }
+}
+
+/// `cfg` with every cost at its largest and every clock at 1 Hz, still valid.
+fn slowest(mut cfg: MachineConfig) -> MachineConfig {
+    let m = MAX_COST_CYCLES;
+    let c = &mut cfg.gp.costs;
+    for cost in [
+        &mut c.vertex_transform,
+        &mut c.clip_test,
+        &mut c.polygon_setup,
+        &mut c.edge_setup,
+        &mut c.command_encode,
+        &mut c.message_send,
+        &mut c.message_receive,
+        &mut c.ff_accumulate_per_pixel,
+        &mut c.w_table_entry,
+        &mut c.radiosity_update_per_patch,
+    ] {
+        *cost = m;
+    }
+    let r = &mut cfg.renderer.cycles;
+    for cost in [
+        &mut r.igc_overhead,
+        &mut r.logic,
+        &mut r.alu_setup,
+        &mut r.per_bit,
+        &mut r.multiply_per_bit_pair,
+        &mut r.backing_store_issue,
+        &mut r.readback_per_bit,
+        &mut r.set_origin,
+    ] {
+        *cost = m;
+    }
+    cfg.renderer.backing_store.block_cycles = m;
+    cfg.renderer.qee.latency_cycles = u32::MAX;
+    cfg.ring.hop_latency_cycles = u32::MAX;
+    cfg.gp.clock_hz = 1;
+    cfg.renderer.clock_hz = 1;
+    cfg.ring.channel_clock_hz = 1;
+    pxpl5_config::check("slowest", &cfg).expect("valid");
+    cfg
+}
+
+#[test]
+fn the_largest_costs_at_the_slowest_clocks_stop_at_the_time_limit() {
+    for name in ["minimal.ron", "seed-tr89-002.ron"] {
+        let cfg = slowest(shipped(name));
+        for max_time in [
+            RunOptions::default().max_time,
+            Tick(u64::MAX / 2),
+            Tick::MAX,
+        ] {
+            let options = RunOptions {
+                fidelity: Fidelity::Integer,
+                max_time,
+            };
+            let err = Machine::new(&cfg, &EveryCost, options, Recorder::new(None, None))
+                .expect("builds")
+                .run()
+                .err()
+                .unwrap_or_else(|| panic!("{name}: a run of 2^52 s finished by {max_time}"));
+            // The ring refuses a message sent past its horizon (half of u64::MAX): what a
+            // saturated time reaches when the time limit is the end of time.
+            assert!(
+                matches!(err, RunError::TimeLimit { limit, .. } if limit == max_time)
+                    || (max_time > Tick(u64::MAX / 2) && matches!(err, RunError::Ring { .. })),
+                "{name}, limit {max_time}: {err}"
+            );
+        }
+    }
+}
+
+#[test]
+fn the_program_runs_at_default_costs() {
+    let cfg = shipped("seed-tr89-002.ron");
+    let r = Machine::new(
+        &cfg,
+        &EveryCost,
+        RunOptions::default(),
+        Recorder::new(None, None),
+    )
+    .expect("builds")
+    .run()
+    .expect("runs");
+    assert!(r.stats.end > Tick::ZERO);
+}
+
+#[test]
+fn the_memory_estimate_admits_the_shipped_and_the_largest_default_machines() {
+    for name in ["minimal.ron", "seed-tr89-002.ron", "pxpl5-1989.ron"] {
+        let cfg = shipped(name);
+        let e = check(&cfg, DEFAULT_LIMIT).expect("fits");
+        assert!(e.total() < 200 << 20, "{name}: {e}");
+    }
+    let mut big = shipped("pxpl5-1989.ron");
+    big.gp.count = MAX_UNITS;
+    big.renderer.count = MAX_UNITS;
+    pxpl5_config::check("big", &big).expect("valid");
+    let e = check(&big, DEFAULT_LIMIT).expect("fits");
+    // A Renderer of 128 x 128 pixels: 208-bit pixel memory as four 64-bit limbs, five one-bit
+    // registers, a 4,096-bit backing store, 32 bytes of working memory per pixel, and 16 KiB.
+    let px = 128 * 128;
+    let renderer = px * 32 + px * 5 / 8 + px * 4096 / 8 + px * 32 + 16 * 1024;
+    assert_eq!(e.parts[0].each, renderer);
+    assert_eq!(e.parts[0].count, 256);
+    assert!(e.total() > 256 * renderer, "{e}");
+}
+
+#[test]
+fn the_memory_estimate_refuses_what_no_host_holds_and_never_overflows() {
+    let mut fb = shipped("minimal.ron");
+    fb.frame_buffer.width = 65_536;
+    fb.frame_buffer.height = 65_536;
+    pxpl5_config::check("fb", &fb).expect("valid");
+    let err = check(&fb, DEFAULT_LIMIT).unwrap_err();
+    let text = err.to_string();
+    assert!(
+        text.starts_with("machine `minimal` needs an estimated 24.0 GiB:"),
+        "{text}"
+    );
+    assert!(
+        text.contains("1 frame buffer x 24 GiB (65536 x 65536 pixels"),
+        "{text}"
+    );
+    assert!(
+        text.ends_with("more than the host memory limit of 4 GiB"),
+        "{text}"
+    );
+    assert_eq!(err.suggested_limit().as_deref(), Some("25GiB"));
+    check(&fb, 25 << 30).expect("within a raised limit");
+
+    // Unchecked counts (a library user's config): the estimate saturates, no overflow.
+    let mut absurd = shipped("minimal.ron");
+    absurd.gp.count = u32::MAX;
+    absurd.renderer.count = u32::MAX;
+    absurd.ring.channels = u32::MAX;
+    absurd.renderer.width = u32::MAX;
+    absurd.renderer.height = u32::MAX;
+    absurd.renderer.backing_store_bits = u32::MAX;
+    let e = estimate(&absurd);
+    assert_eq!(e.total(), u64::MAX);
+    assert_eq!(format_size(e.total()), "16777216 TiB");
+    let err = check(&absurd, u64::MAX - 1).unwrap_err();
+    assert_eq!(err.suggested_limit(), None);
+}
