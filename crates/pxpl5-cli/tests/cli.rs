@@ -1214,6 +1214,16 @@ fn minimal_with(name: &str, from: &str, to: &str) -> PathBuf {
     temp_file(name, &text.replacen(from, to, 1))
 }
 
+/// A miette report's text with its line wrapping undone (blanks folded, the frame's bars gone),
+/// for matching a message that may have been wrapped.
+fn unwrapped(report: &str) -> String {
+    report
+        .split_whitespace()
+        .filter(|w| *w != "│")
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
 /// The exit code 2 and the stderr of `args`, which must not have created `out`.
 fn refused(args: &[&str], out: &Path) -> String {
     let o = pxpl5(args);
@@ -1269,10 +1279,7 @@ fn configs_the_simulator_cannot_run_are_refused_naming_the_field() {
             vec!["radiosity", "--config", cfg, "--out", dir],
         ] {
             let err = refused(&args, &d);
-            // miette wraps long lines: compare without the wrapping.
-            let flat = err.split_whitespace().collect::<Vec<_>>().join(" ");
-            let flat = flat.replace(" │ ", " ");
-            assert!(flat.contains(message), "{args:?}: {err}");
+            assert!(unwrapped(&err).contains(message), "{args:?}: {err}");
         }
     }
 }
@@ -1448,9 +1455,7 @@ fn scenes_whose_numbers_cannot_be_represented_name_the_field() {
     for (i, (command, scene, message)) in cases.iter().enumerate() {
         let f = temp_file(&format!("bad-scene-{i}.ron"), scene);
         let err = refused(&[command, "--scene", f.to_str().unwrap(), "--out", dir], &d);
-        let flat = err.split_whitespace().collect::<Vec<_>>().join(" ");
-        let flat = flat.replace(" │ ", " ");
-        assert!(flat.contains(message), "{command} {i}: {err}");
+        assert!(unwrapped(&err).contains(message), "{command} {i}: {err}");
     }
 }
 

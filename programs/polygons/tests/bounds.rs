@@ -9,6 +9,7 @@ use pxpl5_polygons::reference::reference_frame;
 use pxpl5_polygons::scene::{
     Camera, MAX_COORDINATE, MIN_FOV_DEGREES, Triangle, TriangleScene, check_triangle_scene,
 };
+use pxpl5_polygons::scenes::default_camera;
 use pxpl5_polygons::{Polygons, check_machine, min_int_bits};
 
 fn minimal() -> pxpl5_config::MachineConfig {
@@ -17,17 +18,6 @@ fn minimal() -> pxpl5_config::MachineConfig {
         "/../../machine-configs/minimal.ron"
     );
     pxpl5_config::load_file(std::path::Path::new(path)).expect("shipped config")
-}
-
-fn camera() -> Camera {
-    Camera {
-        eye: (0.0, 0.0, 5.0),
-        target: (0.0, 0.0, 0.0),
-        up: (0.0, 1.0, 0.0),
-        fov_y_degrees: 40.0,
-        near: 0.5,
-        far: 50.0,
-    }
 }
 
 fn triangle(vertices: [(f64, f64, f64); 3]) -> Triangle {
@@ -62,7 +52,7 @@ fn one() -> Vec<Triangle> {
 #[test]
 fn cameras_and_coordinates_that_cannot_be_projected_are_refused() {
     let with = |f: fn(&mut Camera)| {
-        let mut c = camera();
+        let mut c = default_camera();
         f(&mut c);
         problems(&scene(c, one()))
     };
@@ -89,7 +79,7 @@ fn cameras_and_coordinates_that_cannot_be_projected_are_refused() {
         (0.0, 1.3e12, 0.0),
     ])];
     assert_eq!(
-        problems(&scene(camera(), far)),
+        problems(&scene(default_camera(), far)),
         ["triangles[0].vertices[2]"]
     );
     let edge = vec![triangle([
@@ -97,7 +87,7 @@ fn cameras_and_coordinates_that_cannot_be_projected_are_refused() {
         (1.0, -1.0, 0.0),
         (0.0, MAX_COORDINATE, 0.0),
     ])];
-    assert!(problems(&scene(camera(), edge)).is_empty());
+    assert!(problems(&scene(default_camera(), edge)).is_empty());
 }
 
 /// Screen triangles of `s`, every coordinate checked finite.
@@ -117,18 +107,18 @@ fn projected(s: &TriangleScene, width: u32, height: u32) -> Vec<ScreenTriangle> 
 fn extreme_scenes() -> Vec<TriangleScene> {
     let m = MAX_COORDINATE;
     let wide = vec![
-        triangle([(-m, -m, 4.4), (m, -m, 4.4), (0.0, m, -m)]),
-        triangle([(0.0, 0.0, 0.0), (m, 0.0, 4.49), (0.0, 1.0, 4.49)]),
+        triangle([(-m, -m, 8.9), (m, -m, 8.9), (0.0, m, -m)]),
+        triangle([(0.0, 0.0, 0.0), (m, 0.0, 8.99), (0.0, 1.0, 8.99)]),
         triangle([(-1.0, -1.0, 0.0), (1.0, -1.0, 0.0), (0.0, 1.0, 0.0)]),
     ];
-    let mut narrow = camera();
+    let mut narrow = default_camera();
     narrow.fov_y_degrees = MIN_FOV_DEGREES;
-    let mut far_eye = camera();
+    let mut far_eye = default_camera();
     far_eye.eye = (m, m, m);
     far_eye.near = 10.0;
     far_eye.far = 1e13;
     vec![
-        scene(camera(), wide.clone()),
+        scene(default_camera(), wide.clone()),
         scene(narrow, wide.clone()),
         scene(far_eye, wide),
     ]
@@ -225,7 +215,7 @@ fn formats_the_program_cannot_draw_with_name_the_field() {
     let mut one_bit = cfg.clone();
     one_bit.renderer.qee.coefficient_format.int_bits = 1;
     pxpl5_config::check("test", &one_bit).expect("a valid config");
-    let program = Polygons::new(scene(camera(), one()));
+    let program = Polygons::new(scene(default_camera(), one()));
     let err = Machine::new(
         &one_bit,
         &program,
