@@ -2,6 +2,7 @@
 //! slowest clocks end a run at its time limit, never in an overflow panic or a wrapped time; and
 //! the host-memory estimate that commands check before building a machine.
 
+use proptest::prelude::*;
 use pxpl5_config::{MAX_COST_CYCLES, MAX_UNITS, MachineConfig};
 use pxpl5_machine::memory::{DEFAULT_LIMIT, check, estimate, format_size};
 use pxpl5_machine::{
@@ -236,4 +237,175 @@ fn the_memory_estimate_refuses_what_no_host_holds_and_never_overflows() {
     assert_eq!(format_size(e.total()), "16777216 TiB");
     let err = check(&absurd, u64::MAX - 1).unwrap_err();
     assert_eq!(err.suggested_limit(), None);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Fuzz target (see `pxpl5_tests::fuzzing`): machines built from arbitrary field values.
+
+/// A setter of one config field from a u64 (cut to the field's type).
+type Setter = fn(&mut MachineConfig, u64);
+
+/// Every numeric field of a config, by path.
+const FIELDS: &[(&str, Setter)] = &[
+    ("gp.count", |c, v| c.gp.count = v as u32),
+    ("gp.clock_hz", |c, v| c.gp.clock_hz = v),
+    ("gp.costs.vertex_transform", |c, v| {
+        c.gp.costs.vertex_transform = v
+    }),
+    ("gp.costs.clip_test", |c, v| c.gp.costs.clip_test = v),
+    ("gp.costs.polygon_setup", |c, v| {
+        c.gp.costs.polygon_setup = v
+    }),
+    ("gp.costs.edge_setup", |c, v| c.gp.costs.edge_setup = v),
+    ("gp.costs.command_encode", |c, v| {
+        c.gp.costs.command_encode = v
+    }),
+    ("gp.costs.message_send", |c, v| c.gp.costs.message_send = v),
+    ("gp.costs.message_receive", |c, v| {
+        c.gp.costs.message_receive = v
+    }),
+    ("gp.costs.ff_accumulate_per_pixel", |c, v| {
+        c.gp.costs.ff_accumulate_per_pixel = v
+    }),
+    ("gp.costs.w_table_entry", |c, v| {
+        c.gp.costs.w_table_entry = v
+    }),
+    ("gp.costs.radiosity_update_per_patch", |c, v| {
+        c.gp.costs.radiosity_update_per_patch = v
+    }),
+    ("ring.channels", |c, v| c.ring.channels = v as u32),
+    ("ring.channel_clock_hz", |c, v| c.ring.channel_clock_hz = v),
+    ("ring.word_bits", |c, v| c.ring.word_bits = v as u32),
+    ("ring.hop_latency_cycles", |c, v| {
+        c.ring.hop_latency_cycles = v as u32
+    }),
+    ("ring.header_words", |c, v| c.ring.header_words = v as u32),
+    ("ring.max_message_words", |c, v| {
+        c.ring.max_message_words = v as u32
+    }),
+    ("ring.queue_words", |c, v| c.ring.queue_words = v as u32),
+    ("renderer.count", |c, v| c.renderer.count = v as u32),
+    ("renderer.width", |c, v| c.renderer.width = v as u32),
+    ("renderer.height", |c, v| c.renderer.height = v as u32),
+    ("renderer.pixel_memory_bits", |c, v| {
+        c.renderer.pixel_memory_bits = v as u32
+    }),
+    ("renderer.flag_registers", |c, v| {
+        c.renderer.flag_registers = v as u32
+    }),
+    ("renderer.backing_store_bits", |c, v| {
+        c.renderer.backing_store_bits = v as u32
+    }),
+    ("renderer.clock_hz", |c, v| c.renderer.clock_hz = v),
+    ("renderer.qee.coefficient_format.int_bits", |c, v| {
+        c.renderer.qee.coefficient_format.int_bits = v as u32
+    }),
+    ("renderer.qee.coefficient_format.frac_bits", |c, v| {
+        c.renderer.qee.coefficient_format.frac_bits = v as u32
+    }),
+    ("renderer.qee.coordinate_bits", |c, v| {
+        c.renderer.qee.coordinate_bits = v as u32
+    }),
+    ("renderer.qee.max_result_bits", |c, v| {
+        c.renderer.qee.max_result_bits = v as u32
+    }),
+    ("renderer.qee.latency_cycles", |c, v| {
+        c.renderer.qee.latency_cycles = v as u32
+    }),
+    ("renderer.qee.quadratic_extra_cycles", |c, v| {
+        c.renderer.qee.quadratic_extra_cycles = v as u32
+    }),
+    ("renderer.cycles.igc_overhead", |c, v| {
+        c.renderer.cycles.igc_overhead = v
+    }),
+    ("renderer.cycles.logic", |c, v| c.renderer.cycles.logic = v),
+    ("renderer.cycles.alu_setup", |c, v| {
+        c.renderer.cycles.alu_setup = v
+    }),
+    ("renderer.cycles.per_bit", |c, v| {
+        c.renderer.cycles.per_bit = v
+    }),
+    ("renderer.cycles.multiply_per_bit_pair", |c, v| {
+        c.renderer.cycles.multiply_per_bit_pair = v
+    }),
+    ("renderer.cycles.backing_store_issue", |c, v| {
+        c.renderer.cycles.backing_store_issue = v
+    }),
+    ("renderer.cycles.readback_per_bit", |c, v| {
+        c.renderer.cycles.readback_per_bit = v
+    }),
+    ("renderer.cycles.set_origin", |c, v| {
+        c.renderer.cycles.set_origin = v
+    }),
+    ("renderer.backing_store.block_bits", |c, v| {
+        c.renderer.backing_store.block_bits = v as u32
+    }),
+    ("renderer.backing_store.block_cycles", |c, v| {
+        c.renderer.backing_store.block_cycles = v
+    }),
+    ("frame_buffer.width", |c, v| c.frame_buffer.width = v as u32),
+    ("frame_buffer.height", |c, v| {
+        c.frame_buffer.height = v as u32
+    }),
+    ("frame_buffer.bits_per_pixel", |c, v| {
+        c.frame_buffer.bits_per_pixel = v as u32
+    }),
+];
+
+/// Host memory a fuzzed machine may take: enough for hundreds of default Renderers' arrays
+/// (without their backing store, which the program barely touches), little enough for a quick
+/// case.
+const FUZZ_MEMORY: u64 = 256 << 20;
+
+/// The minimal machine with 1 to 5 fields set to extreme values; a clock is set to a divisor of
+/// 10^12 Hz half the time, so that many configs pass validation and run.
+fn fuzzed_config() -> impl Strategy<Value = MachineConfig> {
+    use pxpl5_tests::fuzzing::extreme_u64;
+    let value = prop_oneof![
+        3 => extreme_u64(),
+        1 => (0u32..13).prop_map(|k| 10u64.pow(k)),
+    ];
+    prop::collection::vec((0..FIELDS.len(), value), 1..6).prop_map(|edits| {
+        let mut cfg = shipped("minimal.ron");
+        for (field, v) in edits {
+            (FIELDS[field].1)(&mut cfg, v);
+        }
+        cfg
+    })
+}
+
+proptest::proptest! {
+    // Most cases are refused by the validator in microseconds; an accepted one runs the machine
+    // (milliseconds, up to about a second for 256 GPs at a 1 Hz clock).
+    #![proptest_config(pxpl5_tests::fuzzing::config(3000))]
+
+    /// A config the validator accepts and the memory estimate admits builds and runs: to the end,
+    /// or to an error (a time limit, the ring's horizon, a program's own error), never a panic.
+    #[test]
+    fn fuzz_machine_configs(cfg in fuzzed_config()) {
+        if pxpl5_config::validate(&cfg).is_err() || check(&cfg, FUZZ_MEMORY).is_err() {
+            return Ok(());
+        }
+        let options = RunOptions { fidelity: Fidelity::Integer, max_time: Tick(1_000_000_000_000) };
+        let machine = Machine::new(&cfg, &EveryCost, options, Recorder::new(None, None));
+        if let Ok(machine) = machine {
+            let _ = machine.run();
+        }
+    }
+}
+
+/// The fuzzed configs reach the machine: a share of them are valid.
+#[test]
+fn fuzz_machine_configs_reach_the_machine() {
+    use proptest::strategy::{Strategy, ValueTree};
+    let mut runner = proptest::test_runner::TestRunner::new(pxpl5_tests::fuzzing::config(400));
+    let strategy = fuzzed_config();
+    let valid = (0..400)
+        .filter(|_| {
+            let cfg = strategy.new_tree(&mut runner).expect("a case").current();
+            pxpl5_config::validate(&cfg).is_ok() && check(&cfg, FUZZ_MEMORY).is_ok()
+        })
+        .count();
+    println!("{valid} of 400 valid");
+    assert!((40..360).contains(&valid), "{valid} of 400 valid");
 }
