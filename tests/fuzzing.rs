@@ -52,6 +52,20 @@ fn env_number<T: std::str::FromStr>(name: &str) -> Option<T> {
     )
 }
 
+/// How many of `n` cases of `strategy` (drawn as a target draws them) satisfy `pred`: for the
+/// tests that check that a target's inputs reach each of its paths (valid and refused), so that
+/// a target cannot pass by testing only one.
+pub fn count<S: Strategy>(strategy: &S, n: usize, pred: impl Fn(&S::Value) -> bool) -> usize {
+    use proptest::strategy::ValueTree;
+    let mut runner = proptest::test_runner::TestRunner::new(config(1));
+    (0..n)
+        .filter(|_| {
+            let case = strategy.new_tree(&mut runner).expect("a case").current();
+            pred(&case)
+        })
+        .count()
+}
+
 /// The `.ron` files of `dir` (relative to the workspace root), sorted, with their text.
 pub fn shipped(dir: &str) -> Vec<(String, String)> {
     let root = crate::workspace_root().join(dir);

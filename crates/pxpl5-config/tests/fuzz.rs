@@ -7,7 +7,7 @@
 use miette::{GraphicalReportHandler, GraphicalTheme};
 use proptest::prelude::*;
 use pxpl5_config::{config_hash, parse_str, show, to_ron, validate};
-use pxpl5_tests::fuzzing::{config, mutated, shipped};
+use pxpl5_tests::fuzzing::{config, count, mutated, shipped};
 
 /// Largest report of any error, in bytes: a window of a line, shortened words, at most 50
 /// semantic problems of a few hundred chars each.
@@ -51,23 +51,17 @@ proptest! {
     }
 }
 
-/// The mutations reach both paths: some configs stay valid (and reach the round trips), some
+/// The mutations reach every path: some configs stay valid (and reach the round trips), some
 /// fail in the parser and some in the validator.
 #[test]
 fn fuzz_inputs_reach_every_path() {
-    use proptest::strategy::ValueTree;
-    let mut runner = proptest::test_runner::TestRunner::new(config(500));
     let strategy = mutated(shipped("machine-configs"));
-    let (mut ok, mut syntax, mut semantic) = (0, 0, 0);
-    for _ in 0..500 {
-        let (name, text) = strategy.new_tree(&mut runner).expect("a case").current();
-        match parse_str(&name, &text) {
-            Ok(_) => ok += 1,
-            Err(pxpl5_config::ConfigError::Semantic { .. }) => semantic += 1,
-            Err(_) => syntax += 1,
-        }
-    }
-    println!("{ok} valid, {syntax} syntax, {semantic} semantic");
+    let outcome = |(name, text): &(String, String)| match parse_str(name, text) {
+        Ok(_) => 0,
+        Err(pxpl5_config::ConfigError::Semantic { .. }) => 1,
+        Err(_) => 2,
+    };
+    let [ok, semantic, syntax] = [0, 1, 2].map(|k| count(&strategy, 500, |c| outcome(c) == k));
     assert!(
         ok > 25 && syntax > 25 && semantic > 25,
         "{ok} valid, {syntax} syntax, {semantic} semantic"

@@ -394,18 +394,11 @@ proptest::proptest! {
     }
 }
 
-/// The fuzzed configs reach the machine: a share of them are valid.
+/// The fuzzed configs reach the machine: a share of them are valid, a share refused.
 #[test]
 fn fuzz_machine_configs_reach_the_machine() {
-    use proptest::strategy::{Strategy, ValueTree};
-    let mut runner = proptest::test_runner::TestRunner::new(pxpl5_tests::fuzzing::config(400));
-    let strategy = fuzzed_config();
-    let valid = (0..400)
-        .filter(|_| {
-            let cfg = strategy.new_tree(&mut runner).expect("a case").current();
-            pxpl5_config::validate(&cfg).is_ok() && check(&cfg, FUZZ_MEMORY).is_ok()
-        })
-        .count();
-    println!("{valid} of 400 valid");
+    let valid = pxpl5_tests::fuzzing::count(&fuzzed_config(), 400, |cfg| {
+        pxpl5_config::validate(cfg).is_ok() && check(cfg, FUZZ_MEMORY).is_ok()
+    });
     assert!((40..360).contains(&valid), "{valid} of 400 valid");
 }
