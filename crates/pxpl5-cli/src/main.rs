@@ -16,6 +16,8 @@
 mod bench;
 mod choices;
 mod config_cmd;
+#[cfg(test)]
+mod fuzz;
 mod logging;
 mod output;
 mod radiosity;

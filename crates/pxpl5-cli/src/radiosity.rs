@@ -657,15 +657,15 @@ fn method_name(m: FormFactorMethod) -> &'static str {
 }
 
 /// The inputs of `pxpl5 formfactor`, parsed and checked.
-struct Given {
-    point: DVec3,
-    normal: DVec3,
-    unit_normal: DVec3,
-    polygon: Vec<DVec3>,
+pub(crate) struct Given {
+    pub(crate) point: DVec3,
+    pub(crate) normal: DVec3,
+    pub(crate) unit_normal: DVec3,
+    pub(crate) polygon: Vec<DVec3>,
 }
 
 /// Parse and check `--point`, `--normal` and `--polygon`.
-fn given(args: &FormFactorArgs) -> Result<Given, UserError> {
+pub(crate) fn given(args: &FormFactorArgs) -> Result<Given, UserError> {
     let point = parse_v3("--point", &args.point)?;
     let normal = parse_v3("--normal", &args.normal)?;
     let unit_normal = unit_normal(&args.normal, normal)?;
