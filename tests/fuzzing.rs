@@ -3,11 +3,11 @@
 //! parsers, the machine built from arbitrary configs, the Renderer's command validator, the
 //! CLI's value parsers), run by the normal test command with a bounded number of cases from a
 //! fixed seed, so that a run is reproducible and quick. A longer run is opt-in (README,
-//! "Fuzzing"):
+//! "Fuzzing"), in the test profile, whose overflow checks a release build lacks:
 //!
 //! ```sh
-//! PXPL5_FUZZ_CASES=100000 cargo test --release fuzz_
-//! PXPL5_FUZZ_SEED=7 PXPL5_FUZZ_CASES=100000 cargo test --release fuzz_   # other inputs
+//! PXPL5_FUZZ_CASES=100000 cargo test --workspace fuzz_
+//! PXPL5_FUZZ_SEED=7 PXPL5_FUZZ_CASES=100000 cargo test --workspace fuzz_   # other inputs
 //! ```
 //!
 //! Inputs are mutations of the shipped files ([`shipped`], [`mutated`]): byte edits that cut,
