@@ -198,8 +198,11 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), UserError> {
     if scene.camera.is_some() {
         // The picture is drawn by the polygon program: refuse a machine it cannot draw on now,
         // not after the radiosity runs.
-        pxpl5_polygons::check_machine(&cfg.renderer)
-            .map_err(|e| UserError(format!("the picture of the solution: {e}")))?;
+        pxpl5_polygons::check_machine(
+            &cfg.renderer,
+            (cfg.frame_buffer.width, cfg.frame_buffer.height),
+        )
+        .map_err(|e| UserError(format!("the picture of the solution: {e}")))?;
     }
 
     // Check every destination before the first run.

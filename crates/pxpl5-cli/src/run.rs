@@ -72,7 +72,11 @@ pub fn run(args: &RunArgs) -> Result<(), UserError> {
     };
     let max_time = parse_time(&args.max_time).map_err(|e| UserError(format!("--max-time: {e}")))?;
     let fidelity = Fidelity::from(args.fidelity);
-    pxpl5_polygons::check_machine(&cfg.renderer).map_err(UserError)?;
+    pxpl5_polygons::check_machine(
+        &cfg.renderer,
+        (cfg.frame_buffer.width, cfg.frame_buffer.height),
+    )
+    .map_err(UserError)?;
 
     // Check every destination before spending time on the run.
     output::check_dir("--out", &args.out)?;

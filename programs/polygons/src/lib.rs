@@ -192,13 +192,27 @@ pub fn min_int_bits(side: u32) -> u32 {
 /// a bit of headroom for overshoot at clipped edges.
 pub const MAX_FRAC_BITS: u32 = DEPTH_FIELD_BITS - 1 - (DEPTH_SCALE_LOG2 as u32 - DEPTH_SHIFT) - 1;
 
-/// Whether the program can draw on a machine of this Renderer config: its coefficient format
-/// must hold the edge, depth and colour expressions unclamped, and its depth window must hold
-/// depth (see [`min_int_bits`] and [`MAX_FRAC_BITS`]). The error names the config field. Checked
-/// by the program at its start, and by a caller that wants to refuse before a run.
-pub fn check_machine(rc: &pxpl5_config::RendererConfig) -> Result<(), String> {
+/// Whether the program can draw on a machine of this Renderer config and frame buffer (width,
+/// height): its coefficient format must hold the edge, depth and colour expressions unclamped,
+/// its depth window must hold depth (see [`min_int_bits`] and [`MAX_FRAC_BITS`]), and the
+/// screen's regions must be numbered by a u32. The error names the config field. Checked by the
+/// program at its start, and by a caller that wants to refuse before a run.
+pub fn check_machine(
+    rc: &pxpl5_config::RendererConfig,
+    frame_buffer: (u32, u32),
+) -> Result<(), String> {
     let f = rc.qee.coefficient_format;
     let side = rc.width.min(rc.height);
+    let regions = u64::from(frame_buffer.0.div_ceil(side.max(1)))
+        * u64::from(frame_buffer.1.div_ceil(side.max(1)));
+    if regions > u64::from(u32::MAX) {
+        return Err(format!(
+            "renderer.height: the polygon program cuts the {} x {} frame buffer into regions of \
+             {side} x {side} pixels (the Renderer's shorter side), {regions} of them, more than \
+             it numbers (2^32 - 1)",
+            frame_buffer.0, frame_buffer.1
+        ));
+    }
     let least = min_int_bits(side);
     if f.int_bits < least {
         return Err(format!(
@@ -269,7 +283,7 @@ impl Program for Polygons {
 async fn gp_main(gp: Gp, scene: &TriangleScene) -> Result<(), ProgramError> {
     let (g, gps, renderers) = (gp.index(), gp.gp_count(), gp.renderer_count());
     let rc = gp.renderer_config().clone();
-    check_machine(&rc).map_err(ProgramError)?;
+    check_machine(&rc, gp.frame_buffer_size()).map_err(ProgramError)?;
     let side = rc.width.min(rc.height);
     let (fw, fh) = gp.frame_buffer_size();
     let screen = Screen::new(fw, fh, side);

@@ -193,21 +193,31 @@ fn coordinates_that_are_not_finite_are_an_error_not_a_panic() {
 #[test]
 fn formats_the_program_cannot_draw_with_name_the_field() {
     let cfg = minimal();
-    check_machine(&cfg.renderer).expect("the shipped format");
+    check_machine(&cfg.renderer, (1280, 1024)).expect("the shipped format");
     assert_eq!(min_int_bits(128), 11);
     assert_eq!(min_int_bits(4096), 14);
     let mut narrow = cfg.clone();
     narrow.renderer.qee.coefficient_format.int_bits = 10;
-    let e = check_machine(&narrow.renderer).unwrap_err();
+    let e = check_machine(&narrow.renderer, (1280, 1024)).unwrap_err();
     assert!(
         e.starts_with("renderer.qee.coefficient_format.int_bits") && e.contains("(got 10)"),
         "{e}"
     );
     let mut fine = cfg.clone();
     fine.renderer.qee.coefficient_format.frac_bits = 19;
-    let e = check_machine(&fine.renderer).unwrap_err();
+    let e = check_machine(&fine.renderer, (1280, 1024)).unwrap_err();
     assert!(
         e.starts_with("renderer.qee.coefficient_format.frac_bits"),
+        "{e}"
+    );
+
+    // Regions of one row of pixels on the largest frame buffer: 2^32 of them.
+    let mut flat = cfg.clone();
+    flat.renderer.height = 1;
+    check_machine(&flat.renderer, (65_535, 65_535)).expect("2^32 - 2^17 + 1 regions");
+    let e = check_machine(&flat.renderer, (65_536, 65_536)).unwrap_err();
+    assert!(
+        e.starts_with("renderer.height") && e.contains("4294967296 of them"),
         "{e}"
     );
 
