@@ -13,10 +13,12 @@
 //! Inputs are mutations of the shipped files ([`shipped`], [`mutated`]): byte edits that cut,
 //! repeat and splice in pieces of RON (a [`DICTIONARY`] of tokens and extreme numbers), and
 //! numbers replaced by extreme ones ([`EXTREME_NUMBERS`]); targets also build values field by
-//! field from [`extreme_u64`] and [`extreme_f64`].
+//! field from [`extreme_u64`] and [`extreme_f64`] (a config's through [`CONFIG_FIELDS`]). What
+//! every loading target asks of an error is [`loaded`]'s.
 
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngSeed};
+use pxpl5_config::{ConfigError, MachineConfig};
 
 /// Cases of a target's run: this variable if set, else the target's bounded default.
 pub const CASES_VAR: &str = "PXPL5_FUZZ_CASES";
@@ -329,6 +331,161 @@ pub fn extreme_f64() -> impl Strategy<Value = f64> {
         1 => -1e6f64..1e6,
         1 => any::<f64>(),
     ]
+}
+
+/// A setter of one numeric config field from a u64 (cut to the field's width).
+pub type Setter = fn(&mut MachineConfig, u64);
+
+/// Every numeric field of a machine config: its dotted path and a setter. Fuzz targets set them
+/// to extreme values; tests of the limits pick theirs by path (see [`is_cost`]).
+pub const CONFIG_FIELDS: &[(&str, Setter)] = &[
+    ("gp.count", |c, v| c.gp.count = v as u32),
+    ("gp.clock_hz", |c, v| c.gp.clock_hz = v),
+    ("gp.costs.vertex_transform", |c, v| {
+        c.gp.costs.vertex_transform = v
+    }),
+    ("gp.costs.clip_test", |c, v| c.gp.costs.clip_test = v),
+    ("gp.costs.polygon_setup", |c, v| {
+        c.gp.costs.polygon_setup = v
+    }),
+    ("gp.costs.edge_setup", |c, v| c.gp.costs.edge_setup = v),
+    ("gp.costs.command_encode", |c, v| {
+        c.gp.costs.command_encode = v
+    }),
+    ("gp.costs.message_send", |c, v| c.gp.costs.message_send = v),
+    ("gp.costs.message_receive", |c, v| {
+        c.gp.costs.message_receive = v
+    }),
+    ("gp.costs.ff_accumulate_per_pixel", |c, v| {
+        c.gp.costs.ff_accumulate_per_pixel = v
+    }),
+    ("gp.costs.w_table_entry", |c, v| {
+        c.gp.costs.w_table_entry = v
+    }),
+    ("gp.costs.radiosity_update_per_patch", |c, v| {
+        c.gp.costs.radiosity_update_per_patch = v
+    }),
+    ("ring.channels", |c, v| c.ring.channels = v as u32),
+    ("ring.channel_clock_hz", |c, v| c.ring.channel_clock_hz = v),
+    ("ring.word_bits", |c, v| c.ring.word_bits = v as u32),
+    ("ring.hop_latency_cycles", |c, v| {
+        c.ring.hop_latency_cycles = v as u32
+    }),
+    ("ring.header_words", |c, v| c.ring.header_words = v as u32),
+    ("ring.max_message_words", |c, v| {
+        c.ring.max_message_words = v as u32
+    }),
+    ("ring.queue_words", |c, v| c.ring.queue_words = v as u32),
+    ("renderer.count", |c, v| c.renderer.count = v as u32),
+    ("renderer.width", |c, v| c.renderer.width = v as u32),
+    ("renderer.height", |c, v| c.renderer.height = v as u32),
+    ("renderer.pixel_memory_bits", |c, v| {
+        c.renderer.pixel_memory_bits = v as u32
+    }),
+    ("renderer.flag_registers", |c, v| {
+        c.renderer.flag_registers = v as u32
+    }),
+    ("renderer.backing_store_bits", |c, v| {
+        c.renderer.backing_store_bits = v as u32
+    }),
+    ("renderer.clock_hz", |c, v| c.renderer.clock_hz = v),
+    ("renderer.qee.coefficient_format.int_bits", |c, v| {
+        c.renderer.qee.coefficient_format.int_bits = v as u32
+    }),
+    ("renderer.qee.coefficient_format.frac_bits", |c, v| {
+        c.renderer.qee.coefficient_format.frac_bits = v as u32
+    }),
+    ("renderer.qee.coordinate_bits", |c, v| {
+        c.renderer.qee.coordinate_bits = v as u32
+    }),
+    ("renderer.qee.max_result_bits", |c, v| {
+        c.renderer.qee.max_result_bits = v as u32
+    }),
+    ("renderer.qee.latency_cycles", |c, v| {
+        c.renderer.qee.latency_cycles = v as u32
+    }),
+    ("renderer.qee.quadratic_extra_cycles", |c, v| {
+        c.renderer.qee.quadratic_extra_cycles = v as u32
+    }),
+    ("renderer.cycles.igc_overhead", |c, v| {
+        c.renderer.cycles.igc_overhead = v
+    }),
+    ("renderer.cycles.logic", |c, v| c.renderer.cycles.logic = v),
+    ("renderer.cycles.alu_setup", |c, v| {
+        c.renderer.cycles.alu_setup = v
+    }),
+    ("renderer.cycles.per_bit", |c, v| {
+        c.renderer.cycles.per_bit = v
+    }),
+    ("renderer.cycles.multiply_per_bit_pair", |c, v| {
+        c.renderer.cycles.multiply_per_bit_pair = v
+    }),
+    ("renderer.cycles.backing_store_issue", |c, v| {
+        c.renderer.cycles.backing_store_issue = v
+    }),
+    ("renderer.cycles.readback_per_bit", |c, v| {
+        c.renderer.cycles.readback_per_bit = v
+    }),
+    ("renderer.cycles.set_origin", |c, v| {
+        c.renderer.cycles.set_origin = v
+    }),
+    ("renderer.backing_store.block_bits", |c, v| {
+        c.renderer.backing_store.block_bits = v as u32
+    }),
+    ("renderer.backing_store.block_cycles", |c, v| {
+        c.renderer.backing_store.block_cycles = v
+    }),
+    ("frame_buffer.width", |c, v| c.frame_buffer.width = v as u32),
+    ("frame_buffer.height", |c, v| {
+        c.frame_buffer.height = v as u32
+    }),
+    ("frame_buffer.bits_per_pixel", |c, v| {
+        c.frame_buffer.bits_per_pixel = v as u32
+    }),
+];
+
+/// The machine the scene targets draw on: `machine-configs/minimal.ron` with a 256 x 256 frame
+/// buffer, four regions, so that a case draws in milliseconds.
+pub fn small_machine() -> MachineConfig {
+    let path = crate::workspace_root().join("machine-configs/minimal.ron");
+    let mut cfg = pxpl5_config::load_file(&path).expect("the shipped minimal config");
+    cfg.frame_buffer.width = 256;
+    cfg.frame_buffer.height = 256;
+    cfg
+}
+
+/// Whether the field at `path` is a cost in cycles (at most `pxpl5_config::MAX_COST_CYCLES`).
+pub fn is_cost(path: &str) -> bool {
+    path.starts_with("gp.costs.")
+        || path.starts_with("renderer.cycles.")
+        || path.ends_with("_cycles")
+}
+
+/// Largest report of a loading error, in bytes: a window of a line, shortened words, at most
+/// 50 semantic problems of a few hundred chars each.
+pub const MAX_REPORT_BYTES: usize = 64 * 1024;
+
+/// What a fuzz target asks of loading a file named `name`: its value, or (`None`) an error that
+/// is a proper report: it names the file, stays under [`MAX_REPORT_BYTES`] however big the input,
+/// and renders through miette as the CLI shows it.
+pub fn loaded<T>(name: &str, result: Result<T, ConfigError>) -> Result<Option<T>, TestCaseError> {
+    let e = match result {
+        Ok(value) => return Ok(Some(value)),
+        Err(e) => e,
+    };
+    let shown = e.to_string();
+    prop_assert!(shown.starts_with(name), "{}", shown);
+    prop_assert!(shown.len() < MAX_REPORT_BYTES, "{} bytes", shown.len());
+    let mut rendered = String::new();
+    miette::GraphicalReportHandler::new_themed(miette::GraphicalTheme::unicode_nocolor())
+        .render_report(&mut rendered, &e)
+        .map_err(|_| TestCaseError::fail("miette cannot render the error"))?;
+    prop_assert!(
+        rendered.len() < MAX_REPORT_BYTES,
+        "{} bytes",
+        rendered.len()
+    );
+    Ok(None)
 }
 
 #[cfg(test)]

@@ -905,41 +905,25 @@ fn hop_latency_must_be_at_least_one_clock() {
 #[test]
 fn costs_are_bounded_so_a_charge_fits_simulated_time() {
     use pxpl5_config::MAX_COST_CYCLES;
+    use pxpl5_tests::fuzzing::{CONFIG_FIELDS, is_cost};
     assert_eq!(MAX_COST_CYCLES, u64::from(u32::MAX));
-    type Set = fn(&mut MachineConfig, u64);
-    let fields: [(&str, Set); 6] = [
-        ("gp.costs.vertex_transform", |c, v| {
-            c.gp.costs.vertex_transform = v
-        }),
-        ("gp.costs.radiosity_update_per_patch", |c, v| {
-            c.gp.costs.radiosity_update_per_patch = v
-        }),
-        ("renderer.cycles.igc_overhead", |c, v| {
-            c.renderer.cycles.igc_overhead = v
-        }),
-        ("renderer.cycles.set_origin", |c, v| {
-            c.renderer.cycles.set_origin = v
-        }),
-        ("renderer.backing_store.block_cycles", |c, v| {
-            c.renderer.backing_store.block_cycles = v
-        }),
-        ("renderer.qee.latency_cycles", |c, v| {
-            c.renderer.qee.latency_cycles = v as u32
-        }),
-    ];
-    for (path, set) in fields {
+    let mut wide = 0;
+    for (path, set) in CONFIG_FIELDS.iter().filter(|(path, _)| is_cost(path)) {
         let mut cfg = default_config();
         set(&mut cfg, MAX_COST_CYCLES);
         validate(&cfg).unwrap_or_else(|e| panic!("{path} at the limit: {e:?}"));
-        if path != "renderer.qee.latency_cycles" {
-            set(&mut cfg, u64::MAX);
-            let errors = validate(&cfg).expect_err(path);
+        // A 64-bit field beyond the limit is refused; a 32-bit one cannot be beyond it.
+        set(&mut cfg, u64::MAX);
+        if let Err(errors) = validate(&cfg) {
+            wide += 1;
             assert_eq!(errors.len(), 1, "{errors:?}");
-            assert_eq!(errors[0].path, path);
+            assert_eq!(errors[0].path, *path);
             assert_eq!(errors[0].value, u64::MAX.to_string());
             assert!(errors[0].rule.contains("4294967295"), "{}", errors[0]);
         }
     }
+    // Every u64 cost: ten of the GP, eight of the Renderer, the backing store's block.
+    assert_eq!(wide, 19);
 }
 
 #[test]

@@ -1,6 +1,7 @@
 //! The machine at the edges of what a valid config allows (issue 9): the largest costs at the
-//! slowest clocks end a run at its time limit, never in an overflow panic or a wrapped time; and
-//! the host-memory estimate that commands check before building a machine.
+//! slowest clocks end a run at its time limit, never in an overflow panic or a wrapped time; the
+//! host-memory estimate that commands check before building a machine; and the fuzz target of
+//! machines built from arbitrary config fields.
 
 use proptest::prelude::*;
 use pxpl5_config::{MAX_COST_CYCLES, MAX_UNITS, MachineConfig};
@@ -10,6 +11,7 @@ use pxpl5_machine::{
 };
 use pxpl5_renderer::{Command, Fidelity, Field, Rect};
 use pxpl5_sim::Tick;
+use pxpl5_tests::fuzzing::{CONFIG_FIELDS, is_cost};
 
 fn shipped(name: &str) -> MachineConfig {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -97,38 +99,9 @@ impl Program for EveryCost {
 
 /// `cfg` with every cost at its largest and every clock at 1 Hz, still valid.
 fn slowest(mut cfg: MachineConfig) -> MachineConfig {
-    let m = MAX_COST_CYCLES;
-    let c = &mut cfg.gp.costs;
-    for cost in [
-        &mut c.vertex_transform,
-        &mut c.clip_test,
-        &mut c.polygon_setup,
-        &mut c.edge_setup,
-        &mut c.command_encode,
-        &mut c.message_send,
-        &mut c.message_receive,
-        &mut c.ff_accumulate_per_pixel,
-        &mut c.w_table_entry,
-        &mut c.radiosity_update_per_patch,
-    ] {
-        *cost = m;
+    for (_, set) in CONFIG_FIELDS.iter().filter(|(path, _)| is_cost(path)) {
+        set(&mut cfg, MAX_COST_CYCLES);
     }
-    let r = &mut cfg.renderer.cycles;
-    for cost in [
-        &mut r.igc_overhead,
-        &mut r.logic,
-        &mut r.alu_setup,
-        &mut r.per_bit,
-        &mut r.multiply_per_bit_pair,
-        &mut r.backing_store_issue,
-        &mut r.readback_per_bit,
-        &mut r.set_origin,
-    ] {
-        *cost = m;
-    }
-    cfg.renderer.backing_store.block_cycles = m;
-    cfg.renderer.qee.latency_cycles = u32::MAX;
-    cfg.ring.hop_latency_cycles = u32::MAX;
     cfg.gp.clock_hz = 1;
     cfg.renderer.clock_hz = 1;
     cfg.ring.channel_clock_hz = 1;
@@ -242,116 +215,6 @@ fn the_memory_estimate_refuses_what_no_host_holds_and_never_overflows() {
 // ---------------------------------------------------------------------------------------------
 // Fuzz target (see `pxpl5_tests::fuzzing`): machines built from arbitrary field values.
 
-/// A setter of one config field from a u64 (cut to the field's type).
-type Setter = fn(&mut MachineConfig, u64);
-
-/// Every numeric field of a config, by path.
-const FIELDS: &[(&str, Setter)] = &[
-    ("gp.count", |c, v| c.gp.count = v as u32),
-    ("gp.clock_hz", |c, v| c.gp.clock_hz = v),
-    ("gp.costs.vertex_transform", |c, v| {
-        c.gp.costs.vertex_transform = v
-    }),
-    ("gp.costs.clip_test", |c, v| c.gp.costs.clip_test = v),
-    ("gp.costs.polygon_setup", |c, v| {
-        c.gp.costs.polygon_setup = v
-    }),
-    ("gp.costs.edge_setup", |c, v| c.gp.costs.edge_setup = v),
-    ("gp.costs.command_encode", |c, v| {
-        c.gp.costs.command_encode = v
-    }),
-    ("gp.costs.message_send", |c, v| c.gp.costs.message_send = v),
-    ("gp.costs.message_receive", |c, v| {
-        c.gp.costs.message_receive = v
-    }),
-    ("gp.costs.ff_accumulate_per_pixel", |c, v| {
-        c.gp.costs.ff_accumulate_per_pixel = v
-    }),
-    ("gp.costs.w_table_entry", |c, v| {
-        c.gp.costs.w_table_entry = v
-    }),
-    ("gp.costs.radiosity_update_per_patch", |c, v| {
-        c.gp.costs.radiosity_update_per_patch = v
-    }),
-    ("ring.channels", |c, v| c.ring.channels = v as u32),
-    ("ring.channel_clock_hz", |c, v| c.ring.channel_clock_hz = v),
-    ("ring.word_bits", |c, v| c.ring.word_bits = v as u32),
-    ("ring.hop_latency_cycles", |c, v| {
-        c.ring.hop_latency_cycles = v as u32
-    }),
-    ("ring.header_words", |c, v| c.ring.header_words = v as u32),
-    ("ring.max_message_words", |c, v| {
-        c.ring.max_message_words = v as u32
-    }),
-    ("ring.queue_words", |c, v| c.ring.queue_words = v as u32),
-    ("renderer.count", |c, v| c.renderer.count = v as u32),
-    ("renderer.width", |c, v| c.renderer.width = v as u32),
-    ("renderer.height", |c, v| c.renderer.height = v as u32),
-    ("renderer.pixel_memory_bits", |c, v| {
-        c.renderer.pixel_memory_bits = v as u32
-    }),
-    ("renderer.flag_registers", |c, v| {
-        c.renderer.flag_registers = v as u32
-    }),
-    ("renderer.backing_store_bits", |c, v| {
-        c.renderer.backing_store_bits = v as u32
-    }),
-    ("renderer.clock_hz", |c, v| c.renderer.clock_hz = v),
-    ("renderer.qee.coefficient_format.int_bits", |c, v| {
-        c.renderer.qee.coefficient_format.int_bits = v as u32
-    }),
-    ("renderer.qee.coefficient_format.frac_bits", |c, v| {
-        c.renderer.qee.coefficient_format.frac_bits = v as u32
-    }),
-    ("renderer.qee.coordinate_bits", |c, v| {
-        c.renderer.qee.coordinate_bits = v as u32
-    }),
-    ("renderer.qee.max_result_bits", |c, v| {
-        c.renderer.qee.max_result_bits = v as u32
-    }),
-    ("renderer.qee.latency_cycles", |c, v| {
-        c.renderer.qee.latency_cycles = v as u32
-    }),
-    ("renderer.qee.quadratic_extra_cycles", |c, v| {
-        c.renderer.qee.quadratic_extra_cycles = v as u32
-    }),
-    ("renderer.cycles.igc_overhead", |c, v| {
-        c.renderer.cycles.igc_overhead = v
-    }),
-    ("renderer.cycles.logic", |c, v| c.renderer.cycles.logic = v),
-    ("renderer.cycles.alu_setup", |c, v| {
-        c.renderer.cycles.alu_setup = v
-    }),
-    ("renderer.cycles.per_bit", |c, v| {
-        c.renderer.cycles.per_bit = v
-    }),
-    ("renderer.cycles.multiply_per_bit_pair", |c, v| {
-        c.renderer.cycles.multiply_per_bit_pair = v
-    }),
-    ("renderer.cycles.backing_store_issue", |c, v| {
-        c.renderer.cycles.backing_store_issue = v
-    }),
-    ("renderer.cycles.readback_per_bit", |c, v| {
-        c.renderer.cycles.readback_per_bit = v
-    }),
-    ("renderer.cycles.set_origin", |c, v| {
-        c.renderer.cycles.set_origin = v
-    }),
-    ("renderer.backing_store.block_bits", |c, v| {
-        c.renderer.backing_store.block_bits = v as u32
-    }),
-    ("renderer.backing_store.block_cycles", |c, v| {
-        c.renderer.backing_store.block_cycles = v
-    }),
-    ("frame_buffer.width", |c, v| c.frame_buffer.width = v as u32),
-    ("frame_buffer.height", |c, v| {
-        c.frame_buffer.height = v as u32
-    }),
-    ("frame_buffer.bits_per_pixel", |c, v| {
-        c.frame_buffer.bits_per_pixel = v as u32
-    }),
-];
-
 /// Host memory a fuzzed machine may take: enough for hundreds of default Renderers' arrays
 /// (without their backing store, which the program barely touches), little enough for a quick
 /// case.
@@ -365,10 +228,10 @@ fn fuzzed_config() -> impl Strategy<Value = MachineConfig> {
         3 => extreme_u64(),
         1 => (0u32..13).prop_map(|k| 10u64.pow(k)),
     ];
-    prop::collection::vec((0..FIELDS.len(), value), 1..6).prop_map(|edits| {
+    prop::collection::vec((0..CONFIG_FIELDS.len(), value), 1..6).prop_map(|edits| {
         let mut cfg = shipped("minimal.ron");
         for (field, v) in edits {
-            (FIELDS[field].1)(&mut cfg, v);
+            (CONFIG_FIELDS[field].1)(&mut cfg, v);
         }
         cfg
     })

@@ -10,38 +10,19 @@ use pxpl5_polygons::geometry::{View, triangle_exprs};
 use pxpl5_polygons::reference::reference_frame;
 use pxpl5_polygons::scene::{Camera, Triangle, TriangleScene, parse_triangle_scene};
 use pxpl5_polygons::{Screen, scenes};
-use pxpl5_tests::fuzzing::{config, count, extreme_f64, mutated, shipped};
-
-/// The minimal machine with a 256 x 256 frame buffer: four regions, so a case draws quickly.
-fn machine() -> pxpl5_config::MachineConfig {
-    let mut cfg =
-        pxpl5_config::load_file(&pxpl5_tests::workspace_root().join("machine-configs/minimal.ron"))
-            .expect("shipped config");
-    cfg.frame_buffer.width = 256;
-    cfg.frame_buffer.height = 256;
-    cfg
-}
+use pxpl5_tests::fuzzing::{config, count, extreme_f64, loaded, mutated, shipped, small_machine};
 
 /// What must hold for any text: an error is a short report naming the file; an accepted scene
 /// projects, quantises and draws the reference picture.
 fn check(name: &str, text: &str) -> Result<(), TestCaseError> {
-    let scene = match parse_triangle_scene(name, text) {
-        Ok(scene) => scene,
-        Err(e) => {
-            let shown = e.to_string();
-            prop_assert!(
-                shown.starts_with(name) && shown.len() < 64 * 1024,
-                "{}",
-                shown
-            );
-            return Ok(());
-        }
-    };
-    draws(&scene)
+    match loaded(name, parse_triangle_scene(name, text))? {
+        Some(scene) => draws(&scene),
+        None => Ok(()),
+    }
 }
 
 fn draws(scene: &TriangleScene) -> Result<(), TestCaseError> {
-    let cfg = machine();
+    let cfg = small_machine();
     let (fw, fh) = (cfg.frame_buffer.width, cfg.frame_buffer.height);
     let side = cfg.renderer.width.min(cfg.renderer.height);
     let screen = Screen::new(fw, fh, side);

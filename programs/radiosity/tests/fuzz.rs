@@ -10,20 +10,10 @@ use pxpl5_radiosity::picture::{render, triangle_scene};
 use pxpl5_radiosity::program::Solution;
 use pxpl5_radiosity::scene::{RadiosityScene, parse_radiosity_scene};
 use pxpl5_radiosity::solver::{exact_matrix, progressive};
-use pxpl5_tests::fuzzing::{config, count, mutated, shipped};
+use pxpl5_tests::fuzzing::{config, count, loaded, mutated, shipped, small_machine};
 
 /// Most patches a case solves exactly (the exact form factors are quadratic in them).
 const MAX_SOLVED: usize = 120;
-
-/// The minimal machine with a 256 x 256 frame buffer, for quick pictures.
-fn machine() -> pxpl5_config::MachineConfig {
-    let mut cfg =
-        pxpl5_config::load_file(&pxpl5_tests::workspace_root().join("machine-configs/minimal.ron"))
-            .expect("shipped config");
-    cfg.frame_buffer.width = 256;
-    cfg.frame_buffer.height = 256;
-    cfg
-}
 
 /// The scene's size: the longest side of its bounding box.
 fn size(scene: &RadiosityScene) -> f64 {
@@ -39,17 +29,8 @@ fn size(scene: &RadiosityScene) -> f64 {
 }
 
 fn check(name: &str, text: &str) -> Result<(), TestCaseError> {
-    let scene = match parse_radiosity_scene(name, text) {
-        Ok(scene) => scene,
-        Err(e) => {
-            let shown = e.to_string();
-            prop_assert!(
-                shown.starts_with(name) && shown.len() < 64 * 1024,
-                "{}",
-                shown
-            );
-            return Ok(());
-        }
+    let Some(scene) = loaded(name, parse_radiosity_scene(name, text))? else {
+        return Ok(());
     };
     // A few patches per side of the scene.
     let patches = match mesh(&scene, size(&scene) / 3.0) {
@@ -92,7 +73,7 @@ fn check(name: &str, text: &str) -> Result<(), TestCaseError> {
         let colours = t.colours.iter().flat_map(|c| [c.0, c.1, c.2]);
         prop_assert!(colours.clone().all(|c| (0.0..=1.0).contains(&c)), "{:?}", t);
     }
-    let run = render(&machine(), &patches, &solution, camera);
+    let run = render(&small_machine(), &patches, &solution, camera);
     prop_assert!(
         run.is_ok(),
         "the picture: {}",
