@@ -20,6 +20,8 @@ mod bench;
 mod choices;
 mod config_cmd;
 mod failure;
+#[cfg(test)]
+mod fuzz;
 mod logging;
 mod output;
 mod radiosity;
@@ -52,6 +54,13 @@ struct Cli {
     /// Log only errors on stderr. Results on stdout are unchanged.
     #[arg(short, long, global = true, conflicts_with = "verbose")]
     quiet: bool,
+    /// Host memory a machine may need, e.g. 16GiB or 512MiB (units B, KiB, MiB, GiB, TiB, all
+    /// powers of 1,024). Every command estimates it from the machine config before building
+    /// anything (Renderers' pixel memory and full backing store, GPs, ring, frame buffer; `config
+    /// show` prints the estimate) and refuses a machine that needs more.
+    #[arg(long, global = true, value_name = "SIZE", default_value = "4GiB",
+          value_parser = pxpl5_machine::memory::parse_size)]
+    memory_limit: u64,
     #[command(subcommand)]
     command: Option<Command>,
 }
@@ -135,12 +144,15 @@ enum BenchCommand {
 
 fn main() -> ExitCode {
     let result = match Cli::try_parse() {
-        Ok(cli) => logging::init(cli.verbose, cli.quiet)
-            .map_err(Failure::from)
-            .and_then(|()| {
-                watch::enable_progress(cli.quiet);
-                run_command(cli.command)
-            }),
+        Ok(cli) => {
+            config_cmd::set_memory_limit(cli.memory_limit);
+            logging::init(cli.verbose, cli.quiet)
+                .map_err(Failure::from)
+                .and_then(|()| {
+                    watch::enable_progress(cli.quiet);
+                    run_command(cli.command)
+                })
+        }
         // A usage error, on stderr with exit code 2 (clap ignores a failing stderr).
         Err(e) if e.use_stderr() => e.exit(),
         // --help and --version, on stdout like any report.

@@ -27,6 +27,7 @@ use pxpl5_radiosity::comparison::{Comparison, SEED_RATIO};
 use pxpl5_radiosity::experiment::{self, MethodRun, Settings};
 use pxpl5_radiosity::mesh::{Patch, mesh};
 use pxpl5_radiosity::picture;
+use pxpl5_radiosity::program::MAX_MACHINE_PATCHES;
 use pxpl5_radiosity::scene::RadiosityScene;
 use pxpl5_radiosity::shot::{FfOptions, Method, check_resolution};
 use pxpl5_sim::Tick;
@@ -61,14 +62,20 @@ pub struct RadiosityArgs {
     /// with exact form factors); default 0.01 for such a scene.
     #[arg(long)]
     pub until_error: Option<f64>,
-    /// Stop early when max unshot power / emitted power falls below this (0: never).
-    #[arg(long, default_value_t = 0.0)]
+    /// Stop early when max unshot power / emitted power falls below this (0: never; a finite
+    /// number >= 0).
+    #[arg(long, default_value_t = 0.0, value_parser = non_negative_finite)]
     pub threshold: f64,
-    /// Patch size in scene units (the Cornell box is in millimetres).
-    #[arg(long, default_value_t = 120.0)]
+    /// Patch size in scene units (the Cornell box is in millimetres); the mesh may have at most
+    /// 65,534 patches (the machine's 16-bit patch IDs).
+    #[arg(long, default_value_t = 120.0, value_parser = positive_finite)]
     pub patch_size: f64,
-    /// Pixels across the hemisphere's disk and the hemicube's top face.
-    #[arg(long, default_value_t = 128)]
+    /// Pixels across the hemisphere's disk and the hemicube's top face, 1 to 4096; the machine
+    /// limits it further (a disk larger than a Renderer is cut into tiles of 128 x 128, drawn in
+    /// turn, each within the QEE's pixel addresses; a hemicube face must fit one Renderer, and N
+    /// must be even).
+    #[arg(long, default_value_t = 128,
+          value_parser = clap::value_parser!(u32).range(1..=MAX_RESOLUTION))]
     pub resolution: u32,
     /// Hemisphere edge rule: sign-of-c (docs/radiosity.md section 3) or seed (TR89-002's
     /// CASE 1 / CASE 2).
@@ -304,7 +311,30 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
         Some(p) => pxpl5_radiosity::scene::load_radiosity_scene(p).map_err(config_cmd::report)?,
         None => pxpl5_radiosity::scenes::cornell_empty(),
     };
-    let patches = mesh(&scene, args.patch_size).map_err(|e| UserError(e.to_string()))?;
+    let patches = mesh(&scene, args.patch_size)
+        .map_err(|e| UserError(format!("--patch-size {:?}: {e}", args.patch_size)))?;
+    if patches.len() > MAX_MACHINE_PATCHES {
+        return Err(UserError(format!(
+            "--patch-size {:?}: makes {} patches, more than the {MAX_MACHINE_PATCHES} the \
+             machine's 16-bit patch IDs can name; use a larger patch size",
+            args.patch_size,
+            patches.len()
+        ))
+        .into());
+    }
+    for method in args.method.methods() {
+        check_resolution(method, args.resolution, &cfg.renderer)
+            .map_err(|e| UserError(format!("--resolution {}: {e}", args.resolution)))?;
+    }
+    if scene.camera.is_some() {
+        // The pictures are drawn by the polygon program: refuse a machine it cannot draw on now,
+        // not after the radiosity runs.
+        pxpl5_polygons::check_machine(
+            &cfg.renderer,
+            (cfg.frame_buffer.width, cfg.frame_buffer.height),
+        )
+        .map_err(|e| UserError(format!("the picture of the solution: {e}")))?;
+    }
     let plan = Plan::new(args, &cfg, &scene, &patches)?;
     let methods = args.method.methods();
 
@@ -904,7 +934,34 @@ pub fn number(x: f64) -> String {
     }
 }
 
-fn parse_v3(what: &str, s: &str) -> Result<DVec3, UserError> {
+/// A finite number > 0, for clap.
+pub fn positive_finite(s: &str) -> Result<f64, String> {
+    let x = finite(s)?;
+    if x > 0.0 {
+        Ok(x)
+    } else {
+        Err(format!("`{s}` must be > 0"))
+    }
+}
+
+/// A finite number >= 0, for clap.
+pub fn non_negative_finite(s: &str) -> Result<f64, String> {
+    let x = finite(s)?;
+    if x >= 0.0 {
+        Ok(x)
+    } else {
+        Err(format!("`{s}` must be >= 0"))
+    }
+}
+
+fn finite(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(x) if x.is_finite() => Ok(x),
+        _ => Err(format!("`{s}` is not a finite number")),
+    }
+}
+
+pub(crate) fn parse_v3(what: &str, s: &str) -> Result<DVec3, UserError> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     let bad = || UserError(format!("{what}: `{s}` is not three finite numbers X,Y,Z"));
     if parts.len() != 3 {
@@ -1098,15 +1155,15 @@ fn method_name(m: FormFactorMethod) -> &'static str {
 }
 
 /// The inputs of `pxpl5 formfactor`, parsed and checked.
-struct Given {
-    point: DVec3,
-    normal: DVec3,
-    unit_normal: DVec3,
-    polygon: Vec<DVec3>,
+pub(crate) struct Given {
+    pub(crate) point: DVec3,
+    pub(crate) normal: DVec3,
+    pub(crate) unit_normal: DVec3,
+    pub(crate) polygon: Vec<DVec3>,
 }
 
 /// Parse and check `--point`, `--normal` and `--polygon`.
-fn given(args: &FormFactorArgs) -> Result<Given, UserError> {
+pub(crate) fn given(args: &FormFactorArgs) -> Result<Given, UserError> {
     let point = parse_v3("--point", &args.point)?;
     let normal = parse_v3("--normal", &args.normal)?;
     let unit_normal = unit_normal(&args.normal, normal)?;

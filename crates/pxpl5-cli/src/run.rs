@@ -23,6 +23,11 @@ use crate::failure::Failure;
 use crate::output::{self, Dest, out, outln};
 use crate::watch::{self, Estimate, HostLimit, Sim, Watch};
 
+/// Most random triangles `--triangles` makes: one simulated second's worth at the paper's design
+/// goal. On the reference host a run takes about 160 us and 1 KiB per triangle, so a million is
+/// minutes and a gigabyte, and more would only be slower.
+const MAX_TRIANGLES: u64 = 1_000_000;
+
 /// Options of `pxpl5 run`.
 #[derive(Args, Clone, Debug)]
 pub struct RunArgs {
@@ -35,9 +40,10 @@ pub struct RunArgs {
     /// Scene file (RON; see programs/polygons/scenes/); default: the built-in scene.
     #[arg(long, conflicts_with = "triangles")]
     pub scene: Option<PathBuf>,
-    /// Instead of a scene file, N random triangles.
-    #[arg(long)]
-    pub triangles: Option<usize>,
+    /// Instead of a scene file, N random triangles, 0 to 1,000,000 (the paper's design goal of
+    /// a million triangles per second; a million take minutes of host time).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(0..=MAX_TRIANGLES))]
+    pub triangles: Option<u64>,
     /// Seed of the random triangles.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -68,9 +74,15 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         (Some(path), _) => {
             pxpl5_polygons::scene::load_triangle_scene(path).map_err(config_cmd::report)?
         }
-        (None, Some(n)) => scenes::random_scene(n, args.seed, 3.0),
+        // `n` is at most MAX_TRIANGLES, so it fits a usize.
+        (None, Some(n)) => scenes::random_scene(n as usize, args.seed, 3.0),
         (None, None) => scenes::builtin_scene(),
     };
+    pxpl5_polygons::check_machine(
+        &cfg.renderer,
+        (cfg.frame_buffer.width, cfg.frame_buffer.height),
+    )
+    .map_err(UserError)?;
 
     // Check every destination before spending time on the run.
     output::check_dir("--out", &args.out)?;

@@ -1672,3 +1672,282 @@ fn stats_diff_names_what_changed_with_an_exit_code_ci_can_use() {
         text(&bad.stderr)
     );
 }
+
+// Inputs bounded where they enter (issue 9): configs, scenes and flags the simulator cannot
+// honour are refused before anything runs, with exit code 2, naming the field or flag, the value
+// and the limit; error reports of huge files stay small.
+
+/// `machine-configs/minimal.ron` with `from` replaced by `to` (which must occur once), as a
+/// temporary file.
+fn minimal_with(name: &str, from: &str, to: &str) -> PathBuf {
+    let text = std::fs::read_to_string(root().join("machine-configs/minimal.ron")).unwrap();
+    assert_eq!(text.matches(from).count(), 1, "{from}");
+    temp_file(name, &text.replacen(from, to, 1))
+}
+
+/// A miette report's text with its line wrapping undone (blanks folded, the frame's bars gone),
+/// for matching a message that may have been wrapped.
+fn unwrapped(report: &str) -> String {
+    report
+        .split_whitespace()
+        .filter(|w| *w != "│")
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// The exit code 2 and the stderr of `args`, which must not have created `out`.
+fn refused(args: &[&str], out: &Path) -> String {
+    let o = pxpl5(args);
+    no_panic(&o);
+    let err = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+    assert!(!out.exists(), "{args:?} wrote {}", out.display());
+    err
+}
+
+#[test]
+fn configs_the_simulator_cannot_run_are_refused_naming_the_field() {
+    let d = out_dir("bad-configs");
+    let dir = d.to_str().unwrap();
+    let cases = [
+        (
+            "vertex_transform: 24,",
+            "vertex_transform: 18446744073709551615,",
+            "gp.costs.vertex_transform: must be at most 4294967295 cycles",
+        ),
+        (
+            "igc_overhead: 20,",
+            "igc_overhead: 18446744073709551615,",
+            "renderer.cycles.igc_overhead: must be at most 4294967295 cycles",
+        ),
+        (
+            "int_bits: 13,",
+            "int_bits: 0,",
+            "renderer.qee.coefficient_format.int_bits: must be at least 1 (got 0)",
+        ),
+        (
+            "channels: 1,",
+            "channels: 4294967295,",
+            "ring.channels: must be in 1..=64 (got 4294967295)",
+        ),
+        (
+            "count: 1, // [assumed] the smallest machine (docs/hardware.md: Graphics",
+            "count: 4294967295, // (docs/hardware.md: Graphics",
+            "gp.count: must be in 1..=256 (got 4294967295)",
+        ),
+        (
+            "count: 1, // [assumed] the smallest machine (docs/hardware.md: Renderers",
+            "count: 10000, // (docs/hardware.md: Renderers",
+            "renderer.count: must be in 1..=256 (got 10000)",
+        ),
+    ];
+    for (i, (from, to, message)) in cases.iter().enumerate() {
+        let cfg = minimal_with(&format!("bad-{i}.ron"), from, to);
+        let cfg = cfg.to_str().unwrap();
+        for args in [
+            vec!["config", "check", cfg],
+            vec!["run", "--config", cfg, "--out", dir],
+            vec!["radiosity", "--config", cfg, "--out", dir],
+        ] {
+            let err = refused(&args, &d);
+            assert!(unwrapped(&err).contains(message), "{args:?}: {err}");
+        }
+    }
+}
+
+#[test]
+fn a_machine_beyond_the_memory_limit_is_refused_until_the_limit_is_raised() {
+    let cfg = minimal_with(
+        "huge-frame-buffer.ron",
+        "width: 1280, // [paper]",
+        "width: 65536, // [paper]",
+    );
+    let text_cfg = std::fs::read_to_string(&cfg).unwrap();
+    let cfg = temp_file(
+        "huge-frame-buffer.ron",
+        &text_cfg.replacen("height: 1024, // [paper]", "height: 65536, // [paper]", 1),
+    );
+    let cfg = cfg.to_str().unwrap();
+    let d = out_dir("huge-frame-buffer");
+    let err = refused(&["run", "--config", cfg, "--out", d.to_str().unwrap()], &d);
+    assert!(
+        err.contains("machine `minimal` needs an estimated 24.0 GiB")
+            && err.contains("1 frame buffer x 24 GiB (65536 x 65536 pixels")
+            && err.contains("more than the host memory limit of 4 GiB")
+            && err.contains("raise the limit with --memory-limit 25GiB"),
+        "{err}"
+    );
+    refused(&["config", "check", cfg], &d);
+    // Raised, the check passes (without building the machine: config check only reads it).
+    let ok = pxpl5(&["--memory-limit", "25GiB", "config", "check", cfg]);
+    assert!(ok.status.success(), "{}", text(&ok.stderr));
+    let ok = pxpl5(&["config", "check", cfg, "--memory-limit", "32G"]);
+    assert!(ok.status.success(), "{}", text(&ok.stderr));
+    // config show prints the estimate and the verdict, and still parses back.
+    let show = pxpl5(&["config", "show", cfg]);
+    assert!(show.status.success(), "{}", text(&show.stderr));
+    let shown = text(&show.stdout);
+    assert!(
+        shown.starts_with("// Host memory: the simulator needs an estimated 24.0 GiB: ")
+            && shown.contains("// The limit is 4 GiB (--memory-limit; default 4 GiB): more than"),
+        "{shown}"
+    );
+    pxpl5_config::parse_str("shown.ron", &shown).expect("parses back");
+    let seed = text(&pxpl5(&["config", "show"]).stdout);
+    assert!(seed.contains("): within the limit."), "{seed}");
+    // A bad size is a usage error naming the option.
+    let bad = pxpl5(&["--memory-limit", "3 parsecs", "config", "show"]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(
+        text(&bad.stderr).contains("--memory-limit"),
+        "{}",
+        text(&bad.stderr)
+    );
+}
+
+#[test]
+fn the_default_memory_limit_is_the_documented_one() {
+    let help = text(&pxpl5(&["--help"]).stdout);
+    assert!(help.contains("--memory-limit <SIZE>"), "{help}");
+    assert!(help.contains("[default: 4GiB]"), "{help}");
+    assert_eq!(
+        pxpl5_machine::memory::parse_size("4GiB"),
+        Ok(pxpl5_machine::memory::DEFAULT_LIMIT)
+    );
+}
+
+#[test]
+fn flags_out_of_range_are_refused_before_anything_runs() {
+    let d = out_dir("bad-flags");
+    let dir = d.to_str().unwrap();
+    let cases: &[(&[&str], &str)] = &[
+        (
+            &["run", "--triangles", "18446744073709551615"],
+            "18446744073709551615 is not in 0..=1000000",
+        ),
+        (
+            &["run", "--triangles", "1000000000"],
+            "1000000000 is not in 0..=1000000",
+        ),
+        (
+            &["radiosity", "--resolution", "4294967295"],
+            "4294967295 is not in 1..=4096",
+        ),
+        (&["radiosity", "--resolution", "0"], "0 is not in 1..=4096"),
+        (
+            &["radiosity", "--resolution", "4096"],
+            "--resolution 4096: the hemicube takes an even number of pixels from 2 to 128",
+        ),
+        (
+            &["radiosity", "--method", "hemicube", "--resolution", "127"],
+            "--resolution 127: the hemicube takes an even number of pixels",
+        ),
+        (
+            &["radiosity", "--patch-size", "6"],
+            "--patch-size 6.0: makes 69028 patches, more than the 65534",
+        ),
+        (
+            &["radiosity", "--patch-size", "1e-300"],
+            "--patch-size 1e-300: surfaces[0] (floor): patch size 1e-300 would make more than \
+             100000 patches (about more than 1e308",
+        ),
+        (
+            &["radiosity", "--patch-size", "NaN"],
+            "`NaN` is not a finite number",
+        ),
+        (&["radiosity", "--patch-size", "0"], "`0` must be > 0"),
+        (&["radiosity", "--threshold=-1"], "`-1` must be >= 0"),
+        (
+            &["radiosity", "--threshold", "inf"],
+            "`inf` is not a finite number",
+        ),
+    ];
+    for (args, message) in cases {
+        let mut args = args.to_vec();
+        args.extend(["--out", dir]);
+        let err = refused(&args, &d);
+        assert!(err.contains(message), "{args:?}: {err}");
+    }
+}
+
+#[test]
+fn a_format_the_polygon_program_cannot_draw_with_is_refused_up_front() {
+    let cfg = minimal_with("int-bits-1.ron", "int_bits: 13,", "int_bits: 1,");
+    let cfg = cfg.to_str().unwrap();
+    let d = out_dir("int-bits-1");
+    let dir = d.to_str().unwrap();
+    for args in [
+        vec!["run", "--config", cfg, "--out", dir],
+        vec!["radiosity", "--config", cfg, "--out", dir],
+    ] {
+        let err = refused(&args, &d);
+        assert!(
+            err.contains(
+                "renderer.qee.coefficient_format.int_bits: the polygon program needs at least 11"
+            ),
+            "{args:?}: {err}"
+        );
+    }
+}
+
+#[test]
+fn scenes_whose_numbers_cannot_be_represented_name_the_field() {
+    let d = out_dir("bad-scenes");
+    let dir = d.to_str().unwrap();
+    let cornell =
+        std::fs::read_to_string(root().join("programs/radiosity/scenes/cornell-box.ron")).unwrap();
+    let small = std::fs::read_to_string(root().join("programs/polygons/scenes/small.ron")).unwrap();
+    let cases = [
+        (
+            "radiosity",
+            cornell.replacen(
+                "fov_y_degrees: 39.30764811610662",
+                "fov_y_degrees: 1e-300",
+                1,
+            ),
+            "camera.fov_y_degrees: must be in [1e-6, 180)",
+        ),
+        (
+            "radiosity",
+            cornell.replacen("emission: (17.0, 11.8, 4.0)", "emission: (1e308, 1, 1)", 1),
+            "surfaces[9] (light).emission: components must be >= 0 and at",
+        ),
+        (
+            "run",
+            small.replacen("fov_y_degrees: 45.0", "fov_y_degrees: 1e-300", 1),
+            "camera.fov_y_degrees: must be in [1e-6, 180)",
+        ),
+        (
+            "run",
+            small.replacen("(-9.0, -7.0, -6.0)", "(-9e300, -7.0, -6.0)", 1),
+            "triangles[0].vertices[0]: must be finite numbers of magnitude at most 1e12",
+        ),
+    ];
+    for (i, (command, scene, message)) in cases.iter().enumerate() {
+        let f = temp_file(&format!("bad-scene-{i}.ron"), scene);
+        let err = refused(&[command, "--scene", f.to_str().unwrap(), "--out", dir], &d);
+        assert!(unwrapped(&err).contains(message), "{command} {i}: {err}");
+    }
+}
+
+#[test]
+fn a_ten_megabyte_line_gives_a_short_report() {
+    let f = temp_file(
+        "one-huge-line.ron",
+        &format!("(name: \"x\", {}zzz)", " ".repeat(10_000_000)),
+    );
+    let long = temp_file(
+        "one-long-line.ron",
+        &format!(
+            "(name: \"{}\", gp: (count: 1), ring: (channels: 1), renderer: (count: 1), oops: 1)",
+            "é".repeat(1_000_000)
+        ),
+    );
+    for f in [f, long] {
+        let out = pxpl5(&["config", "check", f.to_str().unwrap()]);
+        no_panic(&out);
+        assert_eq!(out.status.code(), Some(2));
+        assert!(out.stderr.len() < 5_000, "{} bytes", out.stderr.len());
+        assert!(text(&out.stderr).contains("unknown field"));
+    }
+}

@@ -6,14 +6,33 @@
 //! Every variant's plain `Display` is self-sufficient and one problem per line, in the
 //! `file:line:col: message` form editors and `grep` understand, because the CLI and the tests match
 //! on it; the `miette::Diagnostic` side adds the source snippet with a label for terminals.
+//!
+//! **Reports stay small whatever the file.** A garbage file may be one 10 MB line, a key may be a
+//! megabyte long, a scene may list a million bad vertices. So both paths quote only a window of
+//! the offending line around the error ([`MAX_QUOTED_CHARS`], cut at char boundaries and marked
+//! `...`), shorten every long word of a message ([`MAX_WORD_CHARS`]), and list at most
+//! [`MAX_LISTED_ERRORS`] semantic problems. The miette report is given only that window (a
+//! [`Snippet`]), never the whole file: besides the size, miette pads with format widths that
+//! panic beyond 65,535 columns.
 
 use std::fmt;
 use std::str::Utf8Error;
 
-use miette::{Diagnostic, NamedSource, SourceSpan};
+use miette::{Diagnostic, MietteError, MietteSpanContents, SourceCode, SourceSpan, SpanContents};
 
-/// Longest stretch of a source line quoted in a `Display`; a garbage file may be one huge line.
-const MAX_QUOTED_CHARS: usize = 120;
+/// Longest stretch of a source line quoted, in chars: a window around the error's column, about
+/// 60 chars either side.
+pub const MAX_QUOTED_CHARS: usize = 120;
+
+/// Longest word (run of non-blank chars) of a message or a value kept whole; a longer one keeps
+/// its start and end around `...`.
+pub const MAX_WORD_CHARS: usize = 80;
+
+/// Longest text quoted whole, in chars (after long words are shortened).
+pub const MAX_TEXT_CHARS: usize = 400;
+
+/// Most semantic problems listed in one report; the rest are counted.
+pub const MAX_LISTED_ERRORS: usize = 50;
 
 /// What a RON file holds: the machine config, or the scene of one of the programs. It names the
 /// file in error reports.
@@ -100,21 +119,68 @@ pub struct SyntaxError {
     pub line: usize,
     /// ron's 1-based column in characters, moved past any blanks to the offending text.
     pub col: usize,
-    /// ron's description of what was found and what was expected.
+    /// ron's description of what was found and what was expected (long words shortened).
     pub message: String,
-    /// The offending source line, without its line ending.
+    /// The quoted part of the offending source line, without its line ending: at most
+    /// [`MAX_QUOTED_CHARS`] chars around `col`, with `...` where it was cut.
     pub line_text: String,
     /// `line_text` with a gutter and a caret under `col`, as printed by `Display`.
     pub excerpt: String,
+    /// What the miette report quotes: `line_text`, placed at its line and column in the file.
     #[source_code]
-    pub src: NamedSource<String>,
+    pub src: Snippet,
     /// The offending text's bytes in the source.
-    #[label("{label}")]
     pub span: SourceSpan,
+    /// The offending text's bytes in `src` (within the quoted window).
+    #[label("{label}")]
+    pub snippet_span: SourceSpan,
     /// Short text of the label at `span`.
     pub label: String,
     #[help]
     pub help: Option<String>,
+}
+
+/// The part of a file a miette report quotes: one line cut to a window around the error (see
+/// the module doc), with the line and column where the error is in the file, which the report's
+/// header and gutter show.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Snippet {
+    name: String,
+    text: String,
+    /// 0-based line of the error in the file.
+    line: usize,
+    /// 0-based char column of the error in the file.
+    column: usize,
+}
+
+impl Snippet {
+    /// The quoted text.
+    pub fn text(&self) -> &str {
+        &self.text
+    }
+}
+
+impl SourceCode for Snippet {
+    /// The whole snippet for any span: it is one line, and the only spans a report asks for are
+    /// its label's (within the snippet). The column is the error's, for the report's header.
+    fn read_span<'a>(
+        &'a self,
+        _span: &SourceSpan,
+        _context_lines_before: usize,
+        _context_lines_after: usize,
+    ) -> Result<Box<dyn SpanContents<'a> + 'a>, MietteError> {
+        Ok(Box::new(
+            MietteSpanContents::new_named(
+                self.name.clone(),
+                self.text.as_bytes(),
+                SourceSpan::new(0.into(), self.text.len()),
+                self.line,
+                self.column,
+                1,
+            )
+            .with_language("ron"),
+        ))
+    }
 }
 
 /// One broken limit: the dotted field path, the offending value and what is allowed.
@@ -131,8 +197,16 @@ pub struct SemanticError {
 }
 
 impl fmt::Display for SemanticError {
+    /// Long words of the path and the value (a surface's name, a list of a million vertices)
+    /// are shortened ([`shorten_words`]).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}: {} (got {})", self.path, self.rule, self.value)
+        write!(
+            f,
+            "{}: {} (got {})",
+            shorten_words(&self.path),
+            self.rule,
+            shorten_words(&self.value)
+        )
     }
 }
 
@@ -143,11 +217,57 @@ fn semantic_display(kind: FileKind, file: &str, errors: &[SemanticError]) -> Str
         // Not produced by this crate, but a hand-built value must still say something.
         return format!("{file}: invalid {kind}");
     }
-    errors
+    let mut lines: Vec<String> = errors
         .iter()
+        .take(MAX_LISTED_ERRORS)
         .map(|e| format!("{file}: {e}"))
-        .collect::<Vec<_>>()
-        .join("\n")
+        .collect();
+    if errors.len() > MAX_LISTED_ERRORS {
+        lines.push(format!(
+            "{file}: ... and {} more problems",
+            errors.len() - MAX_LISTED_ERRORS
+        ));
+    }
+    lines.join("\n")
+}
+
+/// `text` as a report quotes user input: every word (run of non-blank chars) longer than
+/// [`MAX_WORD_CHARS`] cut to its first and last chars around `...`, and then, if still longer
+/// than [`MAX_TEXT_CHARS`], its middle cut out the same way.
+pub fn shorten_words(text: &str) -> String {
+    let mut out = String::with_capacity(text.len().min(MAX_TEXT_CHARS * 4));
+    let mut rest = text;
+    while !rest.is_empty() {
+        let blank = rest.find(char::is_whitespace).unwrap_or(rest.len());
+        out.push_str(&shorten(&rest[..blank], MAX_WORD_CHARS));
+        rest = &rest[blank..];
+        let word = rest
+            .find(|c: char| !c.is_whitespace())
+            .unwrap_or(rest.len());
+        out.push_str(&rest[..word]);
+        rest = &rest[word..];
+    }
+    shorten(&out, MAX_TEXT_CHARS).into_owned()
+}
+
+/// `text` if it has at most `max` chars, else its first half and last quarter of `max` chars
+/// around `...`.
+fn shorten(text: &str, max: usize) -> std::borrow::Cow<'_, str> {
+    let mut ends = text.char_indices().map(|(i, _)| i);
+    // The byte where char `max` starts, if there is such a char: then the text is too long.
+    if ends.nth(max).is_none() {
+        return text.into();
+    }
+    let head_end = text
+        .char_indices()
+        .nth(max / 2)
+        .map_or(text.len(), |(i, _)| i);
+    let tail_start = text
+        .char_indices()
+        .rev()
+        .nth(max / 4 - 1)
+        .map_or(0, |(i, _)| i);
+    format!("{}...{}", &text[..head_end], &text[tail_start..]).into()
 }
 
 impl ConfigError {
@@ -192,18 +312,33 @@ impl ConfigError {
         } else {
             offending_len(&text[start_byte..])
         };
-        let line_text = line_text(text, line).to_string();
+        let whole_line = line_text(text, line);
+        let q = Quoted::new(whole_line, col - 1);
+        // The offending text as chars of the quoted window: from the caret, at most to the
+        // window's end (a span may run on past it, or over several lines).
+        // The line's end in `text` (the text's end for a line past it, whose text is empty).
+        let line_end = byte_offset(text, line, 1) + whole_line.len();
+        let offending = &text[start_byte..(start_byte + len).min(line_end).max(start_byte)];
+        let span_chars = offending.chars().count().min(q.visible_after_caret);
+        let snippet_start = q.byte_of_char(q.caret);
+        let snippet_end = q.byte_of_char(q.caret + span_chars);
         ConfigError::Syntax(Box::new(SyntaxError {
             file: file.to_string(),
             line,
             col,
-            message: e.code.to_string(),
-            excerpt: excerpt(line, &line_text, col),
-            line_text,
-            src: NamedSource::new(file, text.to_string()).with_language("ron"),
+            message: shorten_words(&e.code.to_string()),
+            excerpt: q.excerpt(line),
+            src: Snippet {
+                name: file.to_string(),
+                text: q.text.clone(),
+                line: line - 1,
+                column: col - 1,
+            },
+            line_text: q.text,
             span: SourceSpan::new(start_byte.into(), len),
-            label: label(&e.code),
-            help: help(&e.code),
+            snippet_span: SourceSpan::new(snippet_start.into(), snippet_end - snippet_start),
+            label: shorten_words(&label(&e.code)),
+            help: help(&e.code).map(|h| shorten_words(&h)),
         }))
     }
 
@@ -262,35 +397,73 @@ fn offending_len(rest: &str) -> usize {
     }
 }
 
-/// The offending line with a gutter and a caret under the 1-based char column `col`; lines longer
-/// than [`MAX_QUOTED_CHARS`] are cut to a window around the column.
-fn excerpt(line: usize, line_text: &str, col: usize) -> String {
-    let chars: Vec<char> = line_text.chars().collect();
-    let caret_at = (col - 1).min(chars.len());
-    let (from, to) = if chars.len() <= MAX_QUOTED_CHARS {
-        (0, chars.len())
-    } else {
-        let from = caret_at.saturating_sub(MAX_QUOTED_CHARS / 2);
-        (from, (from + MAX_QUOTED_CHARS).min(chars.len()))
-    };
-    let shown: String = chars[from..to]
-        .iter()
-        .map(|&c| if c.is_control() && c != '\t' { ' ' } else { c })
-        .collect();
-    let lead = if from > 0 { "..." } else { "" };
-    let trail = if to < chars.len() { "..." } else { "" };
-    // Keep tabs in the caret's indent so it lines up under tab-indented text.
-    let pad: String = std::iter::repeat_n(' ', lead.len())
-        .chain(
-            chars[from..caret_at]
-                .iter()
-                .map(|&c| if c == '\t' { '\t' } else { ' ' }),
-        )
-        .collect();
-    let number = line.to_string();
-    let gutter = " ".repeat(number.len());
-    format!("{number} | {lead}{shown}{trail}\n{gutter} | {pad}^")
+/// The quoted part of a source line: at most [`MAX_QUOTED_CHARS`] chars around the error's
+/// column, with `...` where the line was cut and control chars shown as blanks.
+struct Quoted {
+    text: String,
+    /// The error's column, in chars of `text`.
+    caret: usize,
+    /// Chars of the line shown from the caret on (before any trailing `...`).
+    visible_after_caret: usize,
 }
+
+impl Quoted {
+    /// The window of `line` around 0-based char column `col` (clamped to the line's end).
+    fn new(line: &str, col: usize) -> Quoted {
+        let n = line.chars().count();
+        let caret = col.min(n);
+        // Centred on the caret, shifted to stay within the line, so the window is full whenever
+        // the line is long enough.
+        let from = if n <= MAX_QUOTED_CHARS {
+            0
+        } else {
+            caret
+                .saturating_sub(MAX_QUOTED_CHARS / 2)
+                .min(n - MAX_QUOTED_CHARS)
+        };
+        let to = (from + MAX_QUOTED_CHARS).min(n);
+        let shown = line
+            .chars()
+            .skip(from)
+            .take(to - from)
+            .map(|c| if c.is_control() && c != '\t' { ' ' } else { c });
+        let lead = if from > 0 { "..." } else { "" };
+        let trail = if to < n { "..." } else { "" };
+        let text: String = lead.chars().chain(shown).chain(trail.chars()).collect();
+        Quoted {
+            text,
+            caret: lead.len() + caret - from,
+            visible_after_caret: to - caret,
+        }
+    }
+
+    /// Byte offset in `text` of char `k` (the end of the text past its last char).
+    fn byte_of_char(&self, k: usize) -> usize {
+        self.text
+            .char_indices()
+            .nth(k)
+            .map_or(self.text.len(), |(i, _)| i)
+    }
+
+    /// The quoted text after a gutter with the 1-based `line` number, and a caret under the
+    /// error's column on the next line.
+    fn excerpt(&self, line: usize) -> String {
+        // Keep tabs in the caret's indent so it lines up under tab-indented text.
+        let pad: String = self
+            .text
+            .chars()
+            .take(self.caret)
+            .map(|c| if c == '\t' { '\t' } else { ' ' })
+            .collect();
+        let number = line.to_string();
+        let gutter = " ".repeat(number.len());
+        format!("{number} | {}\n{gutter} | {pad}^", self.text)
+    }
+}
+
+/// Longest unknown name compared with the expected ones for a suggestion: a name this long is no
+/// typo of a field name (and the edit distance is quadratic).
+const MAX_SUGGESTED_FROM: usize = 64;
 
 fn label(code: &ron::Error) -> String {
     match code {
@@ -325,6 +498,9 @@ fn help(code: &ron::Error) -> Option<String> {
 /// The expected name nearest to `found` by edit distance, if it is a plausible typo (at most two
 /// edits, and fewer than half the name).
 fn closest<'a>(found: &str, expected: &[&'a str]) -> Option<&'a str> {
+    if found.len() > MAX_SUGGESTED_FROM {
+        return None;
+    }
     expected
         .iter()
         .map(|&name| (edit_distance(found, name), name))
@@ -368,11 +544,53 @@ mod tests {
 
     #[test]
     fn excerpt_puts_the_caret_under_the_column() {
-        let e = excerpt(12, "\tchanels: 4,", 2);
+        let e = Quoted::new("\tchanels: 4,", 1).excerpt(12);
         assert_eq!(e, "12 | \tchanels: 4,\n   | \t^");
         let long = "x".repeat(500);
-        let e = excerpt(1, &long, 400);
+        let e = Quoted::new(&long, 399).excerpt(1);
         assert!(e.lines().next().is_some_and(|l| l.len() < 140), "{e}");
+    }
+
+    /// A window cut from a long line: full width, `...` at each cut, the caret on the error's
+    /// char, multibyte chars near either cut kept whole.
+    #[test]
+    fn a_long_line_is_quoted_around_the_error() {
+        let line = format!("{}X{}", "é".repeat(1000), "∑".repeat(1000));
+        let q = Quoted::new(&line, 1000);
+        assert_eq!(q.text.chars().count(), MAX_QUOTED_CHARS + 6);
+        assert!(
+            q.text.starts_with("...é") && q.text.ends_with("∑..."),
+            "{}",
+            q.text
+        );
+        assert_eq!(q.text.chars().nth(q.caret), Some('X'));
+        assert_eq!(q.visible_after_caret, MAX_QUOTED_CHARS / 2);
+        // At the end of the line: the window ends there, with nothing cut after it.
+        let q = Quoted::new(&line, 5000);
+        assert!(q.text.starts_with("...") && !q.text.ends_with("..."));
+        assert_eq!(q.caret, q.text.chars().count());
+        assert_eq!(q.visible_after_caret, 0);
+        // At the start.
+        let q = Quoted::new(&line, 0);
+        assert!(q.text.starts_with('é') && q.text.ends_with("..."));
+        assert_eq!(q.caret, 0);
+    }
+
+    #[test]
+    fn long_words_and_texts_are_shortened() {
+        assert_eq!(shorten_words("short words stay"), "short words stay");
+        let word = format!("`{}`", "é".repeat(10_000));
+        let shown = shorten_words(&format!("unknown field {word}, expected `name`"));
+        assert!(shown.starts_with("unknown field `éé"), "{shown}");
+        assert!(shown.ends_with("éé`, expected `name`"), "{shown}");
+        assert!(shown.contains("..."));
+        assert!(shown.chars().count() < 2 * MAX_WORD_CHARS, "{shown}");
+        let many = "(1.0, 2.0) ".repeat(100_000);
+        let shown = shorten_words(&many);
+        assert_eq!(
+            shown.chars().count(),
+            MAX_TEXT_CHARS / 2 + 3 + MAX_TEXT_CHARS / 4
+        );
     }
 
     #[test]

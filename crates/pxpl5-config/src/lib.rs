@@ -32,7 +32,7 @@ use sha2::{Digest, Sha256};
 pub use error::{ConfigError, FileKind, SemanticError, SyntaxError};
 pub use provenance::{PROVENANCE, Provenance, Tag};
 pub use schema::*;
-pub use validate::validate;
+pub use validate::{MAX_CHANNELS, MAX_COST_CYCLES, MAX_FRAME_BUFFER_SIDE, MAX_UNITS, validate};
 
 /// File name of the embedded seed machine, used as the source name in its error reports.
 pub const EMBEDDED_NAME: &str = "seed-tr89-002.ron";

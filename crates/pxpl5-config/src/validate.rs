@@ -19,6 +19,31 @@ const MAX_FRAC_BITS: u32 = 40;
 /// Widest pixel memory the Renderer model accepts (the backing store's size, [paper] 4,096).
 const MAX_PIXEL_MEMORY_BITS: u32 = 4096;
 
+/// Largest cost of one operation or command term, in cycles: 2^32 - 1. Simulated time is a u64
+/// of picoseconds, and a program charges a cost times a count (pixels, bits, patches) that is
+/// itself below 2^32, so a charge in cycles always fits a u64; converted to picoseconds it may
+/// not (at a slow clock), and then it saturates to the end of time and the run stops at its time
+/// limit (`pxpl5_sim`). The bound is a million times the largest default cost (4,096), so it
+/// leaves every what-if open and rules out only values that are typos or overflow probes.
+pub const MAX_COST_CYCLES: u64 = u32::MAX as u64;
+
+/// Most GPs, and most Renderers, a machine may have: 256, 8 and 16 times the paper's largest
+/// machine (32 GPs, 16 Renderers). The simulator scans its units at every simulated instant and
+/// the programs' messages grow with GPs x Renderers, so a machine of thousands runs for minutes
+/// (measured on this project's reference host: 256 GPs and 256 Renderers draw the 402 triangles
+/// in 2 s and shoot one radiosity shot in 5 s; 1,024 GPs need 51 s for that shot and, with 1,024
+/// Renderers, 90 s for the triangles). The host memory a machine needs is checked apart, before
+/// it is built (`pxpl5_machine::memory`).
+pub const MAX_UNITS: u32 = 256;
+
+/// Most ring channels: 64, 16 times the seed's 4; a ring's tokens are all simulated, every
+/// channel clock, and more channels than the machine has nodes carry nothing.
+pub const MAX_CHANNELS: u32 = 64;
+
+/// Largest frame-buffer side: a readback's tag carries the screen position of its region in two
+/// 16-bit halves, so positions must be below 2^16.
+pub const MAX_FRAME_BUFFER_SIDE: u32 = 1 << 16;
+
 /// Checks every semantic limit of `cfg`; on failure returns all the problems found, in field
 /// order.
 pub fn validate(cfg: &MachineConfig) -> Result<(), Vec<SemanticError>> {
@@ -33,18 +58,49 @@ pub fn validate(cfg: &MachineConfig) -> Result<(), Vec<SemanticError>> {
     }
 
     // Graphics Processors.
-    c.at_least("gp.count", cfg.gp.count.into(), 1);
+    c.within("gp.count", cfg.gp.count.into(), 1, MAX_UNITS.into());
     c.clock("gp.clock_hz", cfg.gp.clock_hz);
+    let g = &cfg.gp.costs;
+    for (path, value) in [
+        ("gp.costs.vertex_transform", g.vertex_transform),
+        ("gp.costs.clip_test", g.clip_test),
+        ("gp.costs.polygon_setup", g.polygon_setup),
+        ("gp.costs.edge_setup", g.edge_setup),
+        ("gp.costs.command_encode", g.command_encode),
+        ("gp.costs.message_send", g.message_send),
+        ("gp.costs.message_receive", g.message_receive),
+        (
+            "gp.costs.ff_accumulate_per_pixel",
+            g.ff_accumulate_per_pixel,
+        ),
+        ("gp.costs.w_table_entry", g.w_table_entry),
+        (
+            "gp.costs.radiosity_update_per_patch",
+            g.radiosity_update_per_patch,
+        ),
+    ] {
+        c.cost(path, value);
+    }
 
     // Ring.
     let ring = &cfg.ring;
-    c.at_least("ring.channels", ring.channels.into(), 1);
+    c.within(
+        "ring.channels",
+        ring.channels.into(),
+        1,
+        MAX_CHANNELS.into(),
+    );
     c.clock("ring.channel_clock_hz", ring.channel_clock_hz);
     c.within("ring.word_bits", ring.word_bits.into(), 1, 64);
     c.at_least("ring.max_message_words", ring.max_message_words.into(), 1);
     // A word or a token needs at least one channel clock per hop: at 0 a token would circle
     // the ring in no time.
-    c.at_least("ring.hop_latency_cycles", ring.hop_latency_cycles.into(), 1);
+    c.within(
+        "ring.hop_latency_cycles",
+        ring.hop_latency_cycles.into(),
+        1,
+        MAX_COST_CYCLES,
+    );
     let needed = u64::from(ring.max_message_words) + u64::from(ring.header_words);
     if u64::from(ring.queue_words) < needed {
         c.fail(
@@ -60,7 +116,7 @@ pub fn validate(cfg: &MachineConfig) -> Result<(), Vec<SemanticError>> {
 
     // Renderer array and memory.
     let r = &cfg.renderer;
-    c.at_least("renderer.count", r.count.into(), 1);
+    c.within("renderer.count", r.count.into(), 1, MAX_UNITS.into());
     if r.width == 0 || !r.width.is_multiple_of(64) {
         c.fail(
             "renderer.width",
@@ -86,7 +142,12 @@ pub fn validate(cfg: &MachineConfig) -> Result<(), Vec<SemanticError>> {
         1,
         64,
     );
-    c.at_least("renderer.backing_store.block_cycles", bs.block_cycles, 1);
+    c.within(
+        "renderer.backing_store.block_cycles",
+        bs.block_cycles,
+        1,
+        MAX_COST_CYCLES,
+    );
     if block_ok && !r.backing_store_bits.is_multiple_of(bs.block_bits) {
         c.fail(
             "renderer.backing_store_bits",
@@ -123,6 +184,13 @@ pub fn validate(cfg: &MachineConfig) -> Result<(), Vec<SemanticError>> {
             }
         }
     }
+    // A coefficient of magnitude 1 (a unit edge slope, which every edge test has) needs one
+    // integer bit; with none the QEE cannot hold it.
+    c.at_least(
+        "renderer.qee.coefficient_format.int_bits",
+        q.coefficient_format.int_bits.into(),
+        1,
+    );
     c.within(
         "renderer.qee.coefficient_format.frac_bits",
         q.coefficient_format.frac_bits.into(),
@@ -165,6 +233,11 @@ pub fn validate(cfg: &MachineConfig) -> Result<(), Vec<SemanticError>> {
         1,
         64,
     );
+    c.cost("renderer.qee.latency_cycles", q.latency_cycles.into());
+    c.cost(
+        "renderer.qee.quadratic_extra_cycles",
+        q.quadratic_extra_cycles.into(),
+    );
 
     // Cycle costs that multiply work: a zero would make that work free.
     let cy = &r.cycles;
@@ -186,11 +259,30 @@ pub fn validate(cfg: &MachineConfig) -> Result<(), Vec<SemanticError>> {
             );
         }
     }
+    for (path, value) in [
+        ("renderer.cycles.igc_overhead", cy.igc_overhead),
+        ("renderer.cycles.logic", cy.logic),
+        ("renderer.cycles.alu_setup", cy.alu_setup),
+        ("renderer.cycles.per_bit", cy.per_bit),
+        (
+            "renderer.cycles.multiply_per_bit_pair",
+            cy.multiply_per_bit_pair,
+        ),
+        (
+            "renderer.cycles.backing_store_issue",
+            cy.backing_store_issue,
+        ),
+        ("renderer.cycles.readback_per_bit", cy.readback_per_bit),
+        ("renderer.cycles.set_origin", cy.set_origin),
+    ] {
+        c.cost(path, value);
+    }
 
     // Frame buffer.
     let fb = &cfg.frame_buffer;
-    c.at_least("frame_buffer.width", fb.width.into(), 1);
-    c.at_least("frame_buffer.height", fb.height.into(), 1);
+    let side = MAX_FRAME_BUFFER_SIDE.into();
+    c.within("frame_buffer.width", fb.width.into(), 1, side);
+    c.within("frame_buffer.height", fb.height.into(), 1, side);
     c.within(
         "frame_buffer.bits_per_pixel",
         fb.bits_per_pixel.into(),
@@ -228,6 +320,22 @@ impl Checker {
         let ok = (min..=max).contains(&value);
         if !ok {
             self.fail(path, value.to_string(), format!("must be in {min}..={max}"));
+        }
+        ok
+    }
+
+    /// A cost in cycles must be at most [`MAX_COST_CYCLES`].
+    fn cost(&mut self, path: &str, cycles: u64) -> bool {
+        let ok = cycles <= MAX_COST_CYCLES;
+        if !ok {
+            self.fail(
+                path,
+                cycles.to_string(),
+                format!(
+                    "must be at most {MAX_COST_CYCLES} cycles (2^32 - 1): a cost times the \
+                     counts a program charges it for must fit simulated time"
+                ),
+            );
         }
         ok
     }

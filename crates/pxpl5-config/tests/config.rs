@@ -509,7 +509,7 @@ fn semantic_error_display_names_file_field_rule_and_value() {
     let err = parse_str("bad.ron", &text).expect_err("zero renderers");
     assert_eq!(
         err.to_string(),
-        "bad.ron: renderer.count: must be at least 1 (got 0)"
+        "bad.ron: renderer.count: must be in 1..=256 (got 0)"
     );
     assert_eq!(err.semantic_errors().len(), 1);
 }
@@ -541,11 +541,11 @@ fn all_semantic_errors_are_reported_one_per_line() {
 }
 
 #[test]
-fn counts_must_be_at_least_one_but_have_no_upper_limit() {
+fn counts_must_be_at_least_one_and_a_bigger_machine_is_allowed() {
     assert_names(|c| c.gp.count = 0, "gp.count");
     assert_names(|c| c.ring.channels = 0, "ring.channels");
     assert_names(|c| c.renderer.count = 0, "renderer.count");
-    // Larger than the paper's machine is a legitimate what-if.
+    // Larger than the paper's machine is a legitimate what-if (up to `MAX_UNITS`).
     let mut big = default_config();
     big.gp.count = 256;
     big.renderer.count = 64;
@@ -897,4 +897,158 @@ fn hop_latency_must_be_at_least_one_clock() {
         errors.iter().any(|e| e.path == "ring.hop_latency_cycles"),
         "{errors:?}"
     );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Bounds that keep a valid config runnable (issue 9): costs, counts, formats, frame buffer.
+
+#[test]
+fn costs_are_bounded_so_a_charge_fits_simulated_time() {
+    use pxpl5_config::MAX_COST_CYCLES;
+    use pxpl5_tests::fuzzing::{CONFIG_FIELDS, is_cost};
+    assert_eq!(MAX_COST_CYCLES, u64::from(u32::MAX));
+    let mut wide = 0;
+    for (path, set) in CONFIG_FIELDS.iter().filter(|(path, _)| is_cost(path)) {
+        let mut cfg = default_config();
+        set(&mut cfg, MAX_COST_CYCLES);
+        validate(&cfg).unwrap_or_else(|e| panic!("{path} at the limit: {e:?}"));
+        // A 64-bit field beyond the limit is refused; a 32-bit one cannot be beyond it.
+        set(&mut cfg, u64::MAX);
+        if let Err(errors) = validate(&cfg) {
+            wide += 1;
+            assert_eq!(errors.len(), 1, "{errors:?}");
+            assert_eq!(errors[0].path, *path);
+            assert_eq!(errors[0].value, u64::MAX.to_string());
+            assert!(errors[0].rule.contains("4294967295"), "{}", errors[0]);
+        }
+    }
+    // Every u64 cost: ten of the GP, eight of the Renderer, the backing store's block.
+    assert_eq!(wide, 19);
+}
+
+#[test]
+fn counts_formats_and_frame_buffer_are_bounded() {
+    use pxpl5_config::{MAX_CHANNELS, MAX_FRAME_BUFFER_SIDE, MAX_UNITS};
+    let check = |change: fn(&mut MachineConfig), path: &str, rule: &str| {
+        let mut cfg = default_config();
+        change(&mut cfg);
+        let errors = validate(&cfg).expect_err(path);
+        assert!(
+            errors
+                .iter()
+                .any(|e| e.path == path && e.rule.contains(rule)),
+            "{path}: {errors:?}"
+        );
+    };
+    check(|c| c.gp.count = u32::MAX, "gp.count", "1..=256");
+    check(|c| c.gp.count = 10_000, "gp.count", "1..=256");
+    check(|c| c.renderer.count = u32::MAX, "renderer.count", "1..=256");
+    check(|c| c.ring.channels = u32::MAX, "ring.channels", "1..=64");
+    check(
+        |c| c.renderer.qee.coefficient_format.int_bits = 0,
+        "renderer.qee.coefficient_format.int_bits",
+        "at least 1",
+    );
+    check(
+        |c| c.frame_buffer.width = 65_537,
+        "frame_buffer.width",
+        "1..=65536",
+    );
+    // The limits themselves are accepted (the memory a machine needs is checked apart).
+    let mut cfg = default_config();
+    cfg.gp.count = MAX_UNITS;
+    cfg.renderer.count = MAX_UNITS;
+    cfg.ring.channels = MAX_CHANNELS;
+    cfg.frame_buffer.width = MAX_FRAME_BUFFER_SIDE;
+    cfg.frame_buffer.height = MAX_FRAME_BUFFER_SIDE;
+    cfg.renderer.qee.coefficient_format.int_bits = 1;
+    validate(&cfg).unwrap_or_else(|e| panic!("{e:?}"));
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reports of huge inputs stay small and never panic (issue 9).
+
+/// The Display and the miette report of the error of `text`, checked to be under `limit` bytes.
+fn bounded_reports(text: &str, limit: usize) -> (String, String) {
+    let err = parse_str("huge.ron", text).expect_err("an error");
+    let shown = err.to_string();
+    let rendered = render(&err);
+    assert!(shown.len() < limit, "Display is {} bytes", shown.len());
+    assert!(rendered.len() < limit, "report is {} bytes", rendered.len());
+    (shown, rendered)
+}
+
+#[test]
+fn a_ten_megabyte_line_is_quoted_in_a_window() {
+    let text = format!("(name: \"x\", {}zzz)", " ".repeat(10_000_000));
+    let (shown, rendered) = bounded_reports(&text, 4_000);
+    assert!(shown.starts_with("huge.ron:1:10000013: "), "{shown}");
+    assert!(shown.contains("zzz)"), "{shown}");
+    assert!(rendered.contains("[huge.ron:1:10000013]"), "{rendered}");
+    assert!(rendered.contains("unknown field `zzz`"), "{rendered}");
+}
+
+#[test]
+fn an_error_at_the_end_of_a_megabyte_line_renders_without_panicking() {
+    let text = format!(
+        "(name: \"{}\", gp: (count: 1), ring: (channels: 1), renderer: (count: 1), oops: 1)",
+        "a".repeat(1_000_000)
+    );
+    let (shown, rendered) = bounded_reports(&text, 4_000);
+    assert!(shown.contains("oops: 1)"), "{shown}");
+    assert!(rendered.contains("unknown field `oops`"), "{rendered}");
+    // The caret sits under the key: the line after the quoted one ends in spaces and a caret,
+    // as many chars in as `oops` is in the quoted text.
+    let lines: Vec<&str> = shown.lines().collect();
+    let quoted = lines[lines.len() - 2];
+    let caret = lines[lines.len() - 1];
+    let at = |s: &str, pat: &str| s.char_indices().position(|(i, _)| s[i..].starts_with(pat));
+    assert_eq!(at(quoted, "oops"), at(caret, "^"), "{shown}");
+}
+
+#[test]
+fn a_megabyte_key_of_multibyte_chars_is_shortened_everywhere() {
+    for (prefix, key) in [
+        ("(", "é".repeat(500_000)),
+        ("(name: \"x\", ", "∑é".repeat(300_000)),
+        (
+            "(gp: (count: 1), ",
+            format!("a{}", "\u{1F600}".repeat(200_000)),
+        ),
+    ] {
+        let text = format!("{prefix}{key}: 1)");
+        let (shown, rendered) = bounded_reports(&text, 8_000);
+        assert!(shown.contains("..."), "{shown}");
+        assert!(rendered.contains("..."), "{rendered}");
+    }
+}
+
+#[test]
+fn a_huge_semantic_error_list_is_cut() {
+    let (name, value) = (
+        "n".repeat(100_000),
+        format!("{:?}", vec![(1.0, 2.0, 3.0); 10_000]),
+    );
+    let errors: Vec<pxpl5_config::SemanticError> = (0..200)
+        .map(|i| pxpl5_config::SemanticError {
+            path: format!("surfaces[{i}] ({name})"),
+            value: value.clone(),
+            rule: "must be fine".into(),
+        })
+        .collect();
+    let err = ConfigError::Semantic {
+        kind: pxpl5_config::FileKind::RadiosityScene,
+        file: "s.ron".into(),
+        errors,
+    };
+    let shown = err.to_string();
+    assert!(shown.len() < 60_000, "{} bytes", shown.len());
+    assert_eq!(shown.lines().count(), 51);
+    assert!(
+        shown.ends_with("s.ron: ... and 150 more problems"),
+        "{}",
+        &shown[shown.len() - 100..]
+    );
+    let rendered = render(&err);
+    assert!(rendered.len() < 80_000, "{} bytes", rendered.len());
 }

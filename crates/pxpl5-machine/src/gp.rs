@@ -127,9 +127,12 @@ impl Cost {
         &self.ops
     }
 
-    /// i860 cycles of everything noted.
+    /// i860 cycles of everything noted, saturating at `u64::MAX` (costs are user input; a
+    /// saturated charge ends the run at its time limit, see `pxpl5_sim`'s time module).
     pub fn cycles(&self, t: &GpCostTable) -> u64 {
-        self.ops.iter().map(|&(op, n)| op.cycles(t) * n).sum()
+        self.ops.iter().fold(0u64, |sum, &(op, n)| {
+            sum.saturating_add(op.cycles(t).saturating_mul(n))
+        })
     }
 }
 
@@ -341,7 +344,7 @@ impl Gp {
     /// their work with [`Gp::work`] instead, so that what is charged is what is done (tidy checks
     /// `programs/`); this is for tests of the machine.
     pub async fn compute(&self, op: Op, count: u64) {
-        self.compute_cycles(Cycles(op.cycles(&self.costs) * count))
+        self.compute_cycles(Cycles(op.cycles(&self.costs).saturating_mul(count)))
             .await
     }
 

@@ -12,6 +12,7 @@ mod frame_buffer;
 pub mod gp;
 mod gp_node;
 mod machine;
+pub mod memory;
 mod monitor;
 mod record;
 mod renderer_node;
@@ -25,6 +26,7 @@ pub use gp::{
     ProgramError, Record, Tag, Unit,
 };
 pub use machine::Machine;
+pub use memory::{MemoryError, MemoryEstimate};
 pub use monitor::{CHECK_EVERY, Monitor, Stop};
 pub use record::Recorder;
 pub use run::{RunError, RunOptions, RunResult};

@@ -548,7 +548,7 @@ impl Board {
                 }
             }
             let max = self.cfg.qee.max_result_bits.min(64);
-            if window.bits == 0 || window.shift + window.bits > max {
+            if window.bits == 0 || u64::from(window.shift) + u64::from(window.bits) > max.into() {
                 return Err(CommandError::Window {
                     kind,
                     shift: window.shift,
@@ -633,10 +633,12 @@ impl Board {
                 ref values,
             } => {
                 self.check_rect(rect)?;
-                if values.len() != (rect.width * rect.height) as usize {
+                // In u64: a rectangle of the largest array (2^16 x 2^16) has 2^32 pixels.
+                let want = u64::from(rect.width) * u64::from(rect.height);
+                if values.len() as u64 != want {
                     return Err(CommandError::PixelCount {
                         got: values.len(),
-                        want: (rect.width * rect.height) as usize,
+                        want: want as usize,
                     });
                 }
                 if let Some(&v) = values

@@ -22,7 +22,9 @@ pub struct Field {
 
 impl Field {
     pub fn end(self) -> u32 {
-        self.offset + self.bits
+        // Saturating: a command may carry any offset, and a field ending past u32::MAX lies
+        // outside pixel memory all the same (the board's validation says so).
+        self.offset.saturating_add(self.bits)
     }
 
     /// Whether the two fields share any bit.

@@ -461,3 +461,54 @@ fn write_pixels_fills_a_rectangle_ungated() {
         Err(CommandError::PixelCount { got: 3, want: 16 })
     ));
 }
+
+/// Operands near u32::MAX are errors, not overflows in the validator (found by the fuzz target
+/// `tests/fuzz.rs`: `offset + bits` and `shift + bits` overflowed).
+#[test]
+fn operands_at_the_edge_of_u32_are_errors() {
+    let [mut board, _] = boards(&[]);
+    let far = Field {
+        offset: u32::MAX,
+        bits: 8,
+        signed: false,
+    };
+    let e = board
+        .execute(&Command::WriteConst { dst: far, value: 1 })
+        .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            CommandError::FieldOutside {
+                offset: u32::MAX,
+                bits: 8,
+                memory: 208,
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    let window = Window {
+        shift: u32::MAX,
+        bits: 8,
+    };
+    let e = board
+        .execute(&Command::QeeSign {
+            expr: QeeExpr::linear(1, 0, 0),
+            window,
+            dst: Bit::Enable,
+            combine: LogicOp::AND,
+        })
+        .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            CommandError::Window {
+                shift: u32::MAX,
+                bits: 8,
+                max: 64,
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+}

@@ -3,6 +3,13 @@
 //!
 //! Picoseconds because every clock of the simulated machine has an integral period in them: 40 MHz
 //! is 25,000 ps and 20 MHz 50,000 ps. A u64 of picoseconds lasts 213 days of simulated time.
+//!
+//! **Overflow saturates.** Adding, multiplying and summing times and cycle counts, and converting
+//! cycles to ticks, stop at `u64::MAX` instead of wrapping (or panicking): a config's costs and
+//! clocks are user input, and a span too long for a u64 is simply later than every time limit a
+//! run can have, so the run stops at its limit with a report rather than wrapping to an early,
+//! meaningless time (which the event queue would refuse as an event in the past). Subtraction
+//! still panics when it would go below zero: that is a simulator bug, not a long run.
 
 use std::fmt;
 use std::iter::Sum;
@@ -99,9 +106,10 @@ impl ClockDomain {
         1_000_000_000_000 / self.period_ps
     }
 
-    /// The span of `cycles` clocks.
+    /// The span of `cycles` clocks ([`Tick::MAX`] if that is more than a u64 holds: see the
+    /// module doc on saturation).
     pub fn to_ticks(self, cycles: Cycles) -> Tick {
-        Tick(cycles.0 * self.period_ps.get())
+        Tick(cycles.0.saturating_mul(self.period_ps.get()))
     }
 
     /// Whole cycles elapsed by `tick` (rounded down).
@@ -121,17 +129,19 @@ impl ClockDomain {
     }
 }
 
+/// Addition, multiplication and sums saturate at `u64::MAX` (see the module doc); subtraction
+/// panics below zero.
 macro_rules! arithmetic {
     ($t:ident) => {
         impl Add for $t {
             type Output = $t;
             fn add(self, rhs: $t) -> $t {
-                $t(self.0 + rhs.0)
+                $t(self.0.saturating_add(rhs.0))
             }
         }
         impl AddAssign for $t {
             fn add_assign(&mut self, rhs: $t) {
-                self.0 += rhs.0;
+                self.0 = self.0.saturating_add(rhs.0);
             }
         }
         impl Sub for $t {
@@ -143,12 +153,12 @@ macro_rules! arithmetic {
         impl Mul<u64> for $t {
             type Output = $t;
             fn mul(self, rhs: u64) -> $t {
-                $t(self.0 * rhs)
+                $t(self.0.saturating_mul(rhs))
             }
         }
         impl Sum for $t {
             fn sum<I: Iterator<Item = $t>>(iter: I) -> $t {
-                $t(iter.map(|t| t.0).sum())
+                iter.fold($t(0), |a, b| a + b)
             }
         }
     };
@@ -272,6 +282,26 @@ mod tests {
         assert_eq!(std::iter::empty::<Cycles>().sum::<Cycles>(), Cycles::ZERO);
         assert_eq!(Cycles(8).to_string(), "8 cycles");
     }
+
+    /// Spans too long for a u64 saturate: they are later than any time limit, never an early
+    /// wrapped time.
+    #[test]
+    fn overflow_saturates() {
+        let slow = ClockDomain::from_hz(1).unwrap();
+        assert_eq!(slow.to_ticks(Cycles(u64::MAX)), Tick::MAX);
+        assert_eq!(slow.to_ticks(Cycles(18_446_745)), Tick::MAX);
+        assert_eq!(slow.to_ticks(Cycles(18_446_744)), Tick(18_446_744 * PS));
+        assert_eq!(Tick(u64::MAX - 1) + Tick(5), Tick::MAX);
+        let mut t = Tick(u64::MAX - 3);
+        t += Tick(4);
+        assert_eq!(t, Tick::MAX);
+        assert_eq!(Cycles(u64::MAX / 2) * 3, Cycles(u64::MAX));
+        let total: Cycles = [Cycles(u64::MAX), Cycles(1)].into_iter().sum();
+        assert_eq!(total, Cycles(u64::MAX));
+    }
+
+    /// Picoseconds per second.
+    const PS: u64 = 1_000_000_000_000;
 
     #[test]
     fn tick_arithmetic_and_display() {

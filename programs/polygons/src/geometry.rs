@@ -2,6 +2,11 @@
 //! transform, near/far clipping, projection to the frame buffer's pixel grid, and the QEE
 //! expressions (edges, depth, colours) of a screen triangle in a region's local coordinates.
 //!
+//! Projected coordinates are finite for every scene the checks accept (`scene::MAX_COORDINATE`,
+//! `scene::MIN_FOV_DEGREES`: at most about 1e25 pixels, whose areas and planes stay far inside
+//! an f64); a screen triangle whose area is not finite (a camera the checks refuse) is dropped,
+//! and one whose expressions still cannot be quantised is an error, never a panic.
+//!
 //! Screen coordinates: x to the right, y up, pixel (x, y) sampled at its integer address (the
 //! projection puts pixel centres on integers). A region's Renderer works in local addresses
 //! (origin (0, 0)), so coefficients stay small: a global address up to 1280 would multiply every
@@ -9,7 +14,7 @@
 
 use pxpl5_config::FixedFormat;
 use pxpl5_geom::{DVec3, vec3};
-use pxpl5_renderer::{QeeExpr, Window};
+use pxpl5_renderer::{QeeExpr, QuantiseError, Window};
 
 use crate::scene::{Camera, TriangleScene};
 
@@ -130,7 +135,11 @@ impl View {
                 xyz: [screen[0].0, screen[k].0, screen[k + 1].0],
                 rgb: [screen[0].1, screen[k].1, screen[k + 1].1],
             })
-            .filter(|t| signed_area(t) != 0.0)
+            // Not finite only for a camera the scene checks refuse (see the module doc).
+            .filter(|t| {
+                let area = signed_area(t);
+                area != 0.0 && area.is_finite()
+            })
             .collect()
     }
 }
@@ -220,20 +229,24 @@ fn fits(v: f64, f: FixedFormat) -> f64 {
 
 /// The expressions of `t` for the region whose lower-left pixel is (x0, y0), or None when the
 /// triangle cannot touch the region. `side` is the Renderer's width (= height).
+///
+/// Coefficients are clamped to `format` (a format of at least one integer bit, as configs
+/// are checked to have), so the error is for input no checked scene and camera produce: a
+/// coordinate that is not finite.
 pub fn triangle_exprs(
     t: &ScreenTriangle,
     x0: u32,
     y0: u32,
     side: u32,
     format: FixedFormat,
-) -> Option<TriangleExprs> {
+) -> Result<Option<TriangleExprs>, QuantiseError> {
     let local: [V3; 3] = t
         .xyz
         .map(|v| [v[0] - f64::from(x0), v[1] - f64::from(y0), v[2]]);
     // Counter-clockwise: the interior is on the left of every edge.
     let ccw = signed_area(t) > 0.0;
     let max = f64::from(side);
-    let q = |c: [f64; 6]| QeeExpr::quantise(c, format).expect("coefficients are clamped to fit");
+    let q = |c: [f64; 6]| QeeExpr::quantise(c, format);
     let mut edges = Vec::new();
     for k in 0..3 {
         let (p, r) = if ccw {
@@ -254,15 +267,15 @@ pub fn triangle_exprs(
             continue;
         }
         if vals.iter().all(|v| *v < -0.5) {
-            return None;
+            return Ok(None);
         }
-        let e = q([a, b, fits(c, format), 0.0, 0.0, 0.0]);
+        let e = q([a, b, fits(c, format), 0.0, 0.0, 0.0])?;
         edges.push((e, e.sign_window((0, 0), side, side)));
     }
     let scale = f64::from(DEPTH_SCALE_LOG2).exp2();
     let max_slope = (format.int_bits as f64).exp2() / (4.0 * max);
     let [za, zb, zc] = plane(local.map(|v| [v[0], v[1], v[2] * scale]), max_slope);
-    let depth = q([za, zb, fits(zc, format), 0.0, 0.0, 0.0]);
+    let depth = q([za, zb, fits(zc, format), 0.0, 0.0, 0.0])?;
     let colour = |k: usize| {
         let [a, b, c] = plane(
             [0, 1, 2].map(|i| [local[i][0], local[i][1], t.rgb[i][k] + 0.5]),
@@ -270,9 +283,9 @@ pub fn triangle_exprs(
         );
         q([a, b, fits(c, format), 0.0, 0.0, 0.0])
     };
-    Some(TriangleExprs {
+    Ok(Some(TriangleExprs {
         edges,
         depth,
-        colours: [colour(0), colour(1), colour(2)],
-    })
+        colours: [colour(0)?, colour(1)?, colour(2)?],
+    }))
 }

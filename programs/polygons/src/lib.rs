@@ -26,7 +26,9 @@ use crate::scene::TriangleScene;
 use pxpl5_machine::{CommandBatch, Gp, GpFuture, Op, Program, ProgramError, Record, Tag, Unit};
 use pxpl5_renderer::{Bit, Cmp, Command, Field, LogicOp, PixelLayout, Rect, Window};
 
-use geometry::{DEPTH_FIELD_BITS, DEPTH_SHIFT, ScreenTriangle, View, regions, triangle_exprs};
+use geometry::{
+    DEPTH_FIELD_BITS, DEPTH_SCALE_LOG2, DEPTH_SHIFT, ScreenTriangle, View, regions, triangle_exprs,
+};
 
 /// The polygon program over one scene.
 pub struct Polygons {
@@ -121,16 +123,19 @@ pub fn clear_commands(f: &Fields) -> Vec<Command> {
     ]
 }
 
-/// The commands that draw one triangle in a region, or none if it misses the region.
+/// The commands that draw one triangle in a region, or none if it misses the region; an error
+/// names the scene triangle whose expressions cannot be quantised (see [`triangle_exprs`]).
 pub fn triangle_commands(
     t: &ScreenTriangle,
     origin: (u32, u32),
     side: u32,
     f: &Fields,
     format: pxpl5_config::FixedFormat,
-) -> Vec<Command> {
-    let Some(e) = triangle_exprs(t, origin.0, origin.1, side, format) else {
-        return Vec::new();
+) -> Result<Vec<Command>, ProgramError> {
+    let exprs = triangle_exprs(t, origin.0, origin.1, side, format)
+        .map_err(|e| ProgramError(format!("triangles[{}]: {e}", t.source)))?;
+    let Some(e) = exprs else {
+        return Ok(Vec::new());
     };
     let mut out = vec![Command::enable_all()];
     for (expr, window) in &e.edges {
@@ -169,7 +174,62 @@ pub fn triangle_commands(
             dst: f.channels[k],
         });
     }
-    out
+    Ok(out)
+}
+
+/// Fewest integer bits of the QEE's coefficient format the program draws exactly with on
+/// Renderers of `side` pixels: depth constants reach 2^[`DEPTH_SCALE_LOG2`] (z from 0 to 1,
+/// scaled) and an edge crossing the region has a constant up to 2 (side + 1) (its slopes scaled
+/// to at most 1); neither may be clamped.
+pub fn min_int_bits(side: u32) -> u32 {
+    let edge = 2 * (u64::from(side) + 1) + 1;
+    let edge_bits = u64::BITS - edge.leading_zeros();
+    (DEPTH_SCALE_LOG2 as u32 + 1).max(edge_bits)
+}
+
+/// Most fractional bits the program's depth field holds: depth reaches 2^(frac_bits +
+/// [`DEPTH_SCALE_LOG2`] - [`DEPTH_SHIFT`]) in a signed field of [`DEPTH_FIELD_BITS`] bits, with
+/// a bit of headroom for overshoot at clipped edges.
+pub const MAX_FRAC_BITS: u32 = DEPTH_FIELD_BITS - 1 - (DEPTH_SCALE_LOG2 as u32 - DEPTH_SHIFT) - 1;
+
+/// Whether the program can draw on a machine of this Renderer config and frame buffer (width,
+/// height): its coefficient format must hold the edge, depth and colour expressions unclamped,
+/// its depth window must hold depth (see [`min_int_bits`] and [`MAX_FRAC_BITS`]), and the
+/// screen's regions must be numbered by a u32. The error names the config field. Checked by the
+/// program at its start, and by a caller that wants to refuse before a run.
+pub fn check_machine(
+    rc: &pxpl5_config::RendererConfig,
+    frame_buffer: (u32, u32),
+) -> Result<(), String> {
+    let f = rc.qee.coefficient_format;
+    let side = rc.width.min(rc.height);
+    let regions = u64::from(frame_buffer.0.div_ceil(side.max(1)))
+        * u64::from(frame_buffer.1.div_ceil(side.max(1)));
+    if regions > u64::from(u32::MAX) {
+        return Err(format!(
+            "renderer.height: the polygon program cuts the {} x {} frame buffer into regions of \
+             {side} x {side} pixels (the Renderer's shorter side), {regions} of them, more than \
+             it numbers (2^32 - 1)",
+            frame_buffer.0, frame_buffer.1
+        ));
+    }
+    let least = min_int_bits(side);
+    if f.int_bits < least {
+        return Err(format!(
+            "renderer.qee.coefficient_format.int_bits: the polygon program needs at least \
+             {least} on Renderers of {side} pixels (depth constants reach 2^{DEPTH_SCALE_LOG2}, \
+             edge constants 2 x (side + 1)) (got {})",
+            f.int_bits
+        ));
+    }
+    if f.frac_bits > MAX_FRAC_BITS {
+        return Err(format!(
+            "renderer.qee.coefficient_format.frac_bits: the polygon program takes at most \
+             {MAX_FRAC_BITS} (its depth field is {DEPTH_FIELD_BITS} bits wide) (got {})",
+            f.frac_bits
+        ));
+    }
+    Ok(())
 }
 
 /// A screen triangle as GPs exchange it: its index, 3 x (x, y, z), 3 x (r, g, b), one 32-bit
@@ -223,6 +283,7 @@ impl Program for Polygons {
 async fn gp_main(gp: Gp, scene: &TriangleScene) -> Result<(), ProgramError> {
     let (g, gps, renderers) = (gp.index(), gp.gp_count(), gp.renderer_count());
     let rc = gp.renderer_config().clone();
+    check_machine(&rc, gp.frame_buffer_size()).map_err(ProgramError)?;
     let side = rc.width.min(rc.height);
     let (fw, fh) = gp.frame_buffer_size();
     let screen = Screen::new(fw, fh, side);
@@ -237,7 +298,9 @@ async fn gp_main(gp: Gp, scene: &TriangleScene) -> Result<(), ProgramError> {
     let mine: Vec<usize> = (g as usize..scene.triangles.len())
         .step_by(gps as usize)
         .collect();
-    let mut binned: Vec<Vec<ScreenTriangle>> = vec![Vec::new(); gps as usize];
+    // Only driving GPs receive triangles: one bin each (not one per GP, which is quadratic in
+    // the GPs over the machine).
+    let mut binned: Vec<Vec<ScreenTriangle>> = vec![Vec::new(); drivers.len()];
     for &i in &mine {
         let projected = gp
             .work(|cost| {
@@ -296,7 +359,7 @@ async fn gp_main(gp: Gp, scene: &TriangleScene) -> Result<(), ProgramError> {
                         cost.add(Op::EdgeSetup, 7);
                         triangle_commands(t, origin, side, &fields, format)
                     })
-                    .await;
+                    .await?;
                 batch.push(&gp, cmds).await;
             }
             let w = fw.saturating_sub(origin.0).min(side);

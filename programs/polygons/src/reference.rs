@@ -42,7 +42,9 @@ pub fn reference_frame(scene: &TriangleScene, cfg: &MachineConfig) -> FrameBuffe
             if !regions(t, side, screen.columns, screen.rows).contains(&(x0 / side, y0 / side)) {
                 continue;
             }
-            let Some(e) = triangle_exprs(t, x0, y0, side, format) else {
+            // An error (a coordinate that is not finite) is the machine's run's error; here the
+            // triangle is left out.
+            let Ok(Some(e)) = triangle_exprs(t, x0, y0, side, format) else {
                 continue;
             };
             for py in 0..n {

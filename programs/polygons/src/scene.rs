@@ -69,8 +69,31 @@ pub fn parse_triangle_scene(file_name: &str, text: &str) -> Result<TriangleScene
     )
 }
 
-fn finite(v: Vec3) -> bool {
-    v.0.is_finite() && v.1.is_finite() && v.2.is_finite()
+/// Largest magnitude of a coordinate in a scene (vertices, the camera's points and up vector;
+/// the radiosity scenes' too, and their emissions): 10^12, a billion times the Cornell box's
+/// largest coordinate (556 mm) and its lamp's emission (17). Below it, differences, areas (up to
+/// 4e24), powers (emission x area) and their sums over a mesh stay far inside an f64 (1.8e308);
+/// at 1e308 they overflow to infinity, which no picture or QEE expression can hold.
+pub const MAX_COORDINATE: f64 = 1e12;
+
+/// Narrowest field of view, in degrees: the projection multiplies camera coordinates by 1 /
+/// tan(fov / 2), about 1.1e8 at 1e-6 degrees, which keeps projected coordinates of a scene within
+/// [`MAX_COORDINATE`] finite.
+pub const MIN_FOV_DEGREES: f64 = 1e-6;
+
+/// Largest far / near ratio of a camera: a depth buffer separates nothing beyond it (the polygon
+/// program's is 24 bits), and it keeps 1 / near finite.
+pub const MAX_FAR_OVER_NEAR: f64 = 1e12;
+
+/// Smallest far / near ratio: depth from near to far is scaled by 1 / (1 / near - 1 / far), which
+/// must be finite.
+pub const MIN_FAR_OVER_NEAR: f64 = 1.0 + 1e-6;
+
+/// Whether every component of `v` is finite and at most [`MAX_COORDINATE`] in magnitude.
+pub fn in_range(v: Vec3) -> bool {
+    [v.0, v.1, v.2]
+        .iter()
+        .all(|c| c.is_finite() && c.abs() <= MAX_COORDINATE)
 }
 
 /// Every problem of a scene: non-finite numbers, degenerate triangles (zero area: collinear or
@@ -94,9 +117,10 @@ pub fn check_triangle_scene(scene: &TriangleScene) -> Result<(), Vec<SemanticErr
     }
 }
 
-/// The problems of a camera (with `camera.*` paths): non-finite numbers, an up vector parallel to
-/// the view direction, a field of view outside (0, 180), near and far out of order. The radiosity
-/// scenes' cameras follow the same rules.
+/// The problems of a camera (with `camera.*` paths): numbers that are not finite or beyond
+/// [`MAX_COORDINATE`], an up vector parallel to the view direction, a field of view outside
+/// [[`MIN_FOV_DEGREES`], 180), near and far out of order or too close or too far apart (see
+/// [`MAX_FAR_OVER_NEAR`]). The radiosity scenes' cameras follow the same rules.
 pub fn check_camera(c: &Camera) -> Vec<SemanticError> {
     let mut errors = Vec::new();
     let mut err = |path: String, value: String, rule: &str| {
@@ -107,15 +131,15 @@ pub fn check_camera(c: &Camera) -> Vec<SemanticError> {
         })
     };
     for (name, v) in [("eye", c.eye), ("target", c.target), ("up", c.up)] {
-        if !finite(v) {
+        if !in_range(v) {
             err(
                 format!("camera.{name}"),
                 format!("{v:?}"),
-                "must be finite numbers",
+                &format!("must be finite numbers of magnitude at most {MAX_COORDINATE:e}"),
             );
         }
     }
-    if finite(c.eye) && finite(c.target) && finite(c.up) {
+    if in_range(c.eye) && in_range(c.target) && in_range(c.up) {
         let (dir, up) = (vec3(c.target) - vec3(c.eye), vec3(c.up));
         if dir.length() == 0.0 || dir.cross(up).length() <= 1e-12 * dir.length() * up.length() {
             err(
@@ -125,18 +149,30 @@ pub fn check_camera(c: &Camera) -> Vec<SemanticError> {
             );
         }
     }
-    if !(c.fov_y_degrees > 0.0 && c.fov_y_degrees < 180.0) {
+    if !(c.fov_y_degrees >= MIN_FOV_DEGREES && c.fov_y_degrees < 180.0) {
         err(
             "camera.fov_y_degrees".into(),
-            c.fov_y_degrees.to_string(),
-            "must be in (0, 180)",
+            format!("{:?}", c.fov_y_degrees),
+            &format!(
+                "must be in [{MIN_FOV_DEGREES:e}, 180): a narrower view overflows the projection"
+            ),
         );
     }
     if !(c.near > 0.0 && c.far > c.near && c.far.is_finite()) {
         err(
             "camera.near".into(),
-            format!("near {} far {}", c.near, c.far),
+            format!("near {:?} far {:?}", c.near, c.far),
             "must satisfy 0 < near < far < infinity",
+        );
+    } else if !(MIN_FAR_OVER_NEAR..=MAX_FAR_OVER_NEAR).contains(&(c.far / c.near)) {
+        err(
+            "camera.far".into(),
+            format!("near {:?} far {:?}", c.near, c.far),
+            &format!(
+                "far / near must be in [1 + 1e-6, {MAX_FAR_OVER_NEAR:e}]: depth is scaled by 1 / \
+                 (1 / near - 1 / far), which must be finite, and a depth buffer separates \
+                 nothing over a wider range"
+            ),
         );
     }
     errors
@@ -153,11 +189,11 @@ fn check_triangle(i: usize, t: &Triangle, err: &mut impl FnMut(String, String, &
         return;
     }
     for (k, v) in t.vertices.iter().enumerate() {
-        if !finite(*v) {
+        if !in_range(*v) {
             err(
                 format!("triangles[{i}].vertices[{k}]"),
                 format!("{v:?}"),
-                "must be finite numbers",
+                &format!("must be finite numbers of magnitude at most {MAX_COORDINATE:e}"),
             );
         }
     }
@@ -171,7 +207,7 @@ fn check_triangle(i: usize, t: &Triangle, err: &mut impl FnMut(String, String, &
             );
         }
     }
-    if t.vertices.iter().all(|v| finite(*v)) {
+    if t.vertices.iter().all(|v| in_range(*v)) {
         let [a, b, c] = [0, 1, 2].map(|k| vec3(t.vertices[k]));
         let (e1, e2) = (b - a, c - a);
         let area2 = e1.cross(e2).length();

@@ -39,7 +39,7 @@ pub struct Patch {
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum MeshError {
     /// The patch size is not a finite positive number.
-    #[error("patch size must be a finite number > 0 (got {0})")]
+    #[error("patch size must be a finite number > 0 (got {0:?})")]
     BadPatchSize(f64),
     /// The scene breaks the rules of `check_radiosity_scene` (the mesher relies on them).
     #[error("the scene is invalid:\n{}", list(.0))]
@@ -47,9 +47,9 @@ pub enum MeshError {
     /// Meshing would make more than [`MAX_PATCHES`] patches; `count` is the running total reached
     /// with this surface (possibly infinite for an absurdly small patch size).
     #[error(
-        "surfaces[{surface}] ({name}): patch size {patch_size} would make more than \
-         {MAX_PATCHES} patches (about {count:.0} in all up to this surface); use a larger patch \
-         size"
+        "surfaces[{surface}] ({name}): patch size {patch_size:?} would make more than \
+         {MAX_PATCHES} patches (about {} in all up to this surface); use a larger patch size",
+        about(*.count)
     )]
     TooManyPatches {
         surface: usize,
@@ -57,6 +57,18 @@ pub enum MeshError {
         patch_size: f64,
         count: f64,
     },
+}
+
+/// A patch count for a report: whole below 10^12, else in scientific notation (it may overflow
+/// an f64 for an absurdly small patch size).
+fn about(count: f64) -> String {
+    if !count.is_finite() {
+        "more than 1e308".to_string()
+    } else if count < 1e12 {
+        format!("{count:.0}")
+    } else {
+        format!("{count:.1e}")
+    }
 }
 
 fn list(errors: &[SemanticError]) -> String {

@@ -26,6 +26,10 @@ use crate::shot::{
 };
 use crate::views::shot_scale;
 
+/// Most patches the program runs on the machine: a patch's ID is 1 to 65,534 in the 16-bit ID
+/// field (0 is "no patch" in an item buffer).
+pub const MAX_MACHINE_PATCHES: usize = u16::MAX as usize - 1;
+
 /// A receiver's form factor (from a shot's shooter), as GPs exchange it: one 32-bit ring word per
 /// value (\[assumed\]: the i860 sends single-precision floats and integers; the simulator keeps
 /// the f64 it computed).
@@ -447,11 +451,10 @@ impl Program for RadiosityProgram {
         let monitor = self.monitor.clone().filter(|_| gp.index() == 0);
         Box::pin(async move {
             let (g, gps) = (gp.index() as usize, gp.gp_count() as usize);
-            if patches.len() >= u16::MAX as usize {
+            if patches.len() > MAX_MACHINE_PATCHES {
                 return Err(ProgramError(format!(
-                    "{} patches: the 16-bit ID field holds at most {}",
+                    "{} patches: the 16-bit ID field holds at most {MAX_MACHINE_PATCHES}",
                     patches.len(),
-                    u16::MAX - 1
                 )));
             }
             let owned: Vec<usize> = (g..patches.len()).step_by(gps).collect();

@@ -34,7 +34,8 @@ use pxpl5_geom::convex::Corner;
 use pxpl5_geom::plane::best_fit_plane;
 use pxpl5_geom::polygon::{self, Problem};
 use pxpl5_geom::{DVec3, vec3};
-pub use pxpl5_polygons::scene::{Camera, Vec3};
+use pxpl5_polygons::scene::in_range;
+pub use pxpl5_polygons::scene::{Camera, MAX_COORDINATE, Vec3};
 
 /// A scene for the radiosity program.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -138,12 +139,8 @@ pub fn parse_radiosity_scene(file_name: &str, text: &str) -> Result<RadiositySce
     )
 }
 
-fn finite(v: Vec3) -> bool {
-    v.0.is_finite() && v.1.is_finite() && v.2.is_finite()
-}
-
-/// Every problem of a scene, each naming the surface by index and name: no surfaces; non-finite
-/// numbers; fewer than 3 vertices; zero area; non-planar beyond [`PLANARITY_TOLERANCE`] (with the
+/// Every problem of a scene, each naming the surface by index and name: no surfaces; numbers that
+/// are not finite or beyond [`MAX_COORDINATE`] (coordinates and emissions); fewer than 3 vertices; zero area; non-planar beyond [`PLANARITY_TOLERANCE`] (with the
 /// distance); non-convex, including repeated and collinear consecutive vertices; reflectance
 /// outside [0, 1); negative emission; a camera that cannot see.
 pub fn check_radiosity_scene(scene: &RadiosityScene) -> Result<(), Vec<SemanticError>> {
@@ -189,11 +186,17 @@ fn check_surface(at: &str, s: &Surface, errors: &mut Vec<SemanticError>) {
         );
     }
     let e = s.emission;
-    if ![e.0, e.1, e.2].iter().all(|c| c.is_finite() && *c >= 0.0) {
+    if ![e.0, e.1, e.2]
+        .iter()
+        .all(|c| (0.0..=MAX_COORDINATE).contains(c))
+    {
         err(
             format!("{at}.emission"),
             format!("{e:?}"),
-            "components must be finite and >= 0".into(),
+            format!(
+                "components must be >= 0 and at most {MAX_COORDINATE:e}, so that powers \
+                 (emission x area) stay finite"
+            ),
         );
     }
     if s.vertices.len() < 3 {
@@ -205,12 +208,12 @@ fn check_surface(at: &str, s: &Surface, errors: &mut Vec<SemanticError>) {
     }
     let mut all_finite = true;
     for (k, &v) in s.vertices.iter().enumerate() {
-        if !finite(v) {
+        if !in_range(v) {
             all_finite = false;
             err(
                 format!("{at}.vertices[{k}]"),
                 format!("{v:?}"),
-                "must be finite numbers".into(),
+                format!("must be finite numbers of magnitude at most {MAX_COORDINATE:e}"),
             );
         }
     }

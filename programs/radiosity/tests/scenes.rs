@@ -407,3 +407,35 @@ fn garbage_never_panics() {
         let _ = parse_radiosity_scene("noise.ron", &text);
     }
 }
+
+/// Emissions and coordinates whose powers or projections cannot be represented are refused at
+/// load, naming the field (issue 9: an emission of 1e308 panicked in the picture's quantisation).
+#[test]
+fn emissions_and_coordinates_are_bounded() {
+    use pxpl5_radiosity::scene::MAX_COORDINATE;
+    let e = cornell_error(
+        "emission: (17.0, 11.8, 4.0)",
+        "emission: (1e308, 1e308, 1e308)",
+    );
+    assert!(e.contains("(light).emission") && e.contains("1e12"), "{e}");
+    let e = cornell_error("fov_y_degrees: 39.30764811610662", "fov_y_degrees: 1e-300");
+    assert!(e.contains("camera.fov_y_degrees"), "{e}");
+    let e = cornell_error("(556, 548.8, 227)", "(5.56e300, 548.8, 227)");
+    assert!(e.contains(".vertices[") && e.contains("magnitude"), "{e}");
+    // The bounds themselves are accepted, and such a scene solves to finite radiosities, which
+    // the picture's tone map can show.
+    let mut big = closed_box(MAX_COORDINATE, 0.5);
+    big.surfaces[0].emission = (MAX_COORDINATE, MAX_COORDINATE, MAX_COORDINATE);
+    check_radiosity_scene(&big).unwrap();
+    let patches = mesh(&big, MAX_COORDINATE / 2.0).unwrap();
+    let f = pxpl5_radiosity::solver::exact_matrix(&patches);
+    let radiosity = pxpl5_radiosity::solver::progressive(&patches, &f, 1e-6, 1000);
+    assert!(
+        radiosity
+            .iter()
+            .flatten()
+            .all(|b| b.is_finite() && *b >= 0.0),
+        "{radiosity:?}"
+    );
+    assert!(radiosity.iter().flatten().any(|b| *b > 1e11));
+}
