@@ -229,7 +229,7 @@ pub fn parse_size(text: &str) -> Result<u64, String> {
     n.checked_mul(1u64 << shift).ok_or_else(too_large)
 }
 
-/// `bytes` in the largest unit of [`UNITS`] it reaches, with one decimal below 100 of it
+/// `bytes` in the largest unit of `UNITS` it reaches, with one decimal below 100 of it
 /// (`8.6 MiB`, `4 GiB`, `512 B`).
 pub fn format_size(bytes: u64) -> String {
     let (name, shift) = UNITS
