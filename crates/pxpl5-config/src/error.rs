@@ -122,7 +122,7 @@ pub struct SyntaxError {
     /// ron's description of what was found and what was expected (long words shortened).
     pub message: String,
     /// The quoted part of the offending source line, without its line ending: at most
-    /// [`MAX_QUOTED_CHARS`] chars around `col`, with `...` where it was cut.
+    /// `MAX_QUOTED_CHARS` chars around `col`, with `...` where it was cut.
     pub line_text: String,
     /// `line_text` with a gutter and a caret under `col`, as printed by `Display`.
     pub excerpt: String,
@@ -198,7 +198,7 @@ pub struct SemanticError {
 
 impl fmt::Display for SemanticError {
     /// Long words of the path and the value (a surface's name, a list of a million vertices)
-    /// are shortened ([`shorten_words`]).
+    /// are shortened (`shorten_words`).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
