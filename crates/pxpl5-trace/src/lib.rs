@@ -36,8 +36,8 @@ mod vcd_trace;
 mod window;
 
 pub use chrome::{
-    Args, ChromeTrace, Micros, NestingError, RESERVED_METADATA_KEYS, SliceSpan, TIME_UNIT_NOTE,
-    TrackId,
+    Args, ChromeTrace, FlowStep, Micros, NestingError, RESERVED_METADATA_KEYS, SliceSpan,
+    TIME_UNIT_NOTE, TrackId,
 };
 pub use json::JsonValue;
 pub use pxpl5_sim::Tick;
