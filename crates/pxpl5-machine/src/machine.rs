@@ -277,6 +277,8 @@ impl Machine {
                         at: self.now,
                         profile: node.profile.clone(),
                     };
+                    self.recorder
+                        .message_sent(taken.0, Unit::Gp(g as u32), self.now);
                     self.delivery.sent(taken.0, taken.1, out.payload, sent);
                     self.gps[g].sent();
                     progress = true;
@@ -313,7 +315,7 @@ impl Machine {
     /// GP `g` became busy until `until` doing `busy`: record it, extend its critical path, and
     /// schedule its wake-up.
     fn gp_busy(&mut self, g: u32, until: Tick, busy: Busy) {
-        self.recorder.gp_busy(g, self.now, until);
+        self.recorder.gp_busy(g, self.now, until, busy);
         let cat = match busy {
             Busy::Compute => self.gp_phase[g as usize],
             Busy::Send => self.fixed.send,
@@ -353,8 +355,7 @@ impl Machine {
     /// A message arrived: hand it (and any held successors) to the receiver in send order.
     fn deliver(&mut self, d: pxpl5_ring::Delivery) -> Result<(), RunError> {
         let (route, due) = self.delivery.arrived(d.id, d.delivered);
-        self.recorder
-            .message_delivered(d.id, route.from, route.to, d.sent, d.delivered, d.words);
+        self.recorder.message_delivered(&d, route.from, route.to);
         for a in due {
             self.hand_over(a);
         }
@@ -375,6 +376,7 @@ impl Machine {
         match to {
             Unit::Gp(g) => {
                 self.consume(id);
+                self.recorder.handed_to_gp(g, id);
                 let node = &mut self.gps[g as usize];
                 if let Some(until) = node.deliver(self.now, message, &self.cfg.gp.costs) {
                     // The GP waited for this message: its path runs through it.
@@ -439,13 +441,13 @@ impl Machine {
                     .profile
                     .plus(self.fixed.readback_waits, self.now - node.last_end),
             };
+            self.recorder.message_sent(id, Unit::Renderer(r), self.now);
             self.delivery.sent(id, route, out.payload, sent);
         }
         let Some(started) = self.renderers[r as usize].start_next(self.now)? else {
             return Ok(false);
         };
-        self.recorder
-            .renderer_command(r, started.kind, started.start, started.end);
+        self.recorder.renderer_command(r, &started);
         self.renderer_path(r, &started);
         self.schedule(started.end, Event::RendererDone(r));
         Ok(true)

@@ -1,28 +1,48 @@
 //! What the machine records as it runs: program phase marks (always, for the stats) and, on
 //! request, Chrome trace and VCD events in simulated time.
 //!
-//! Tracks: one per GP (compute bursts, grouped) and one per GP for its phases; one per Renderer
-//! (commands, grouped into runs of back-to-back commands of one kind, since there are too many to
-//! show one by one); ring messages on "lanes" (a message goes on the first lane free at its send
-//! time, so slices on a lane never overlap); counters of each node's ring output-queue occupancy.
-//! VCD: per GP and per Renderer a busy wire; per ring channel the token's position and whether it
-//! is held. Ring signals are sampled at every instant the machine acts (the ring's own edges in
+//! Tracks (Chrome trace): per GP its phases (named as in the stats' `phases`) and its busy time,
+//! as `compute`, `message send` and `message receive` slices (the stats' critical-path
+//! categories); per Renderer its commands, grouped into runs of back-to-back commands of one kind
+//! (there are too many to show one by one); per ring channel a process `Ring channel C` whose
+//! `lane N` tracks hold the messages that channel carried (a message goes on the first lane free
+//! at its send time, so slices on a lane never overlap; a message whose packets took several
+//! channels goes to `Ring channels A+B`), with a counter of whether the channel's token is held;
+//! process `Ring queues`: per node the words in its output and input queues.
+//!
+//! Flows: every message is one flow, id = its ring message id, from the sender's slice (the GP's
+//! `message send`, or the Renderer's readback command) through its ring slice to the receiver's
+//! work on it (the GP's `message receive`; a Renderer's first, readback and last commands of it).
+//! A readback's reply starts at the readback command, where the flow of the command message
+//! that asked for it passes, and its ring slice names that message in the arg `answers`.
+//!
+//! VCD: per GP and per Renderer a busy wire; per ring channel the token's position as the name of
+//! the node it is at (a string variable; a `$comment` lists the ring order) and whether it is
+//! held. Ring signals are sampled at every instant the machine acts (the ring's own edges in
 //! between are not visible).
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 
-use pxpl5_ring::{MessageId, NodeId, Ring, TokenLocation};
+use pxpl5_ring::{Delivery, MessageId, NodeId, Ring, TokenLocation};
 use pxpl5_sim::Tick;
-use pxpl5_trace::{Args, ChromeTrace, JsonValue, SignalId, TraceWindow, TrackId, VcdTrace};
+use pxpl5_trace::{
+    Args, ChromeTrace, FlowStep, JsonValue, SignalId, TraceWindow, TrackId, VcdTrace,
+};
 
 use crate::gp::Unit;
+use crate::gp_node::Busy;
+use crate::renderer_node::Started;
 use crate::stats::PhaseSpan;
+
+/// The name every message flow carries (Perfetto links a flow's events by name and id).
+const FLOW: &str = "message";
 
 struct Tracks {
     gp: Vec<TrackId>,
     gp_phase: Vec<TrackId>,
     renderer: Vec<TrackId>,
-    lanes: Vec<Lane>,
+    /// Per set of channels a message used (bit mask): its lanes.
+    lanes: BTreeMap<u64, Vec<Lane>>,
 }
 
 /// A track ring messages are drawn on, and when its last message ends (a message goes on the
@@ -54,6 +74,20 @@ struct Signals {
     token_held: Vec<SignalId>,
 }
 
+/// What the flows need to remember between a message's events; all of it is bounded by the
+/// messages in flight.
+#[derive(Default)]
+struct Flows {
+    /// Per GP, its latest busy slice: a send's flow starts in the `message send` slice before it.
+    gp_last_busy: Vec<(Tick, Tick)>,
+    /// Per GP, the messages handed to it and not yet received, in mailbox order.
+    gp_inbox: Vec<VecDeque<MessageId>>,
+    /// Per Renderer, its latest readback command's slice and the message it came in.
+    readback: Vec<Option<(Tick, Tick, MessageId)>>,
+    /// Readback replies on the ring, with the command message they answer.
+    answers: BTreeMap<MessageId, MessageId>,
+}
+
 /// The machine's recorder.
 #[derive(Default)]
 pub struct Recorder {
@@ -61,17 +95,35 @@ pub struct Recorder {
     vcd: Option<VcdTrace>,
     tracks: Option<Tracks>,
     signals: Option<Signals>,
+    flows: Flows,
     units: Vec<Unit>,
     /// Phase marks in mark order.
     marks: Vec<Mark>,
     /// GP end times, for the last phase's end.
     gp_end: BTreeMap<u32, Tick>,
-    /// Last sampled output-queue occupancy per node.
-    queue_words: Vec<u64>,
+    /// Last sampled output- and input-queue occupancy per node.
+    queue_words: Vec<(u64, u64)>,
+    /// Last sampled token state per channel: held, and (VCD) the node it is at.
+    token: Vec<(bool, u32)>,
     /// Renderer command slices shorter apart than this merge (one Renderer cycle).
     renderer_gap: Tick,
     /// Words of a node's ring output queue.
     queue_capacity: u64,
+}
+
+/// The middle of `[start, end)`: inside the slice (for a slice of two picoseconds or more), where
+/// a flow binds to it whatever order a viewer reads equal timestamps in.
+fn mid(start: Tick, end: Tick) -> Tick {
+    Tick(start.0 + end.0.saturating_sub(start.0) / 2)
+}
+
+/// Channel numbers in a mask, joined by `sep`.
+fn channel_list(mask: u64, sep: &str) -> String {
+    (0..64)
+        .filter(|c| mask & (1 << c) != 0)
+        .map(|c: u32| c.to_string())
+        .collect::<Vec<_>>()
+        .join(sep)
 }
 
 impl Recorder {
@@ -93,32 +145,40 @@ impl Recorder {
     ) {
         self.units = units.to_vec();
         self.queue_capacity = queue_capacity;
-        self.queue_words = vec![0; units.len()];
+        self.queue_words = vec![(0, 0); units.len()];
+        self.token = vec![(false, u32::MAX); channels as usize];
         self.renderer_gap = renderer_cycle;
-        let gps: Vec<u32> = units
+        let gps = units.iter().filter(|u| matches!(u, Unit::Gp(_))).count();
+        let renderers = units
             .iter()
-            .filter_map(|u| if let Unit::Gp(g) = u { Some(*g) } else { None })
-            .collect();
-        let renderers: Vec<u32> = units
-            .iter()
-            .filter_map(|u| {
-                if let Unit::Renderer(r) = u {
-                    Some(*r)
-                } else {
-                    None
-                }
-            })
-            .collect();
+            .filter(|u| matches!(u, Unit::Renderer(_)))
+            .count();
+        self.flows = Flows {
+            gp_last_busy: vec![(Tick::ZERO, Tick::ZERO); gps],
+            gp_inbox: vec![VecDeque::new(); gps],
+            readback: vec![None; renderers],
+            answers: BTreeMap::new(),
+        };
         if let Some(c) = &mut self.chrome {
             let mut gp_tracks = Vec::new();
             let mut phase_tracks = Vec::new();
-            for g in 0..gps.len() {
+            for g in 0..gps {
                 phase_tracks.push(c.track("GPs", &format!("GP {g} phases")));
                 gp_tracks.push(c.track("GPs", &format!("GP {g}")));
             }
-            let renderer = (0..renderers.len())
+            let renderer = (0..renderers)
                 .map(|r| c.track("Renderers", &format!("Renderer {r}")))
                 .collect();
+            // Each channel's first lane now, so channels appear in order whatever carries first.
+            let mut lanes = BTreeMap::new();
+            for ch in 0..channels.min(64) {
+                let track = c.track(&format!("Ring channel {ch}"), "lane 0");
+                let lane = Lane {
+                    track,
+                    free_from: Tick::ZERO,
+                };
+                lanes.insert(1u64 << ch, vec![lane]);
+            }
             c.metadata(
                 "ring_order",
                 units.iter().map(|u| u.to_string()).collect::<Vec<_>>(),
@@ -127,23 +187,32 @@ impl Recorder {
                 gp: gp_tracks,
                 gp_phase: phase_tracks,
                 renderer,
-                lanes: Vec::new(),
+                lanes,
             });
         }
         if let Some(v) = &mut self.vcd {
+            let order: Vec<String> = units
+                .iter()
+                .enumerate()
+                .map(|(i, u)| format!("{i} {u}"))
+                .collect();
+            v.comment(&format!(
+                "ring order (node: unit), the values of chN_token_at: {}",
+                order.join(", ")
+            ));
             let gp_scope = v.scope("gps");
-            let gp = (0..gps.len())
+            let gp = (0..gps)
                 .map(|g| v.wire(gp_scope, &format!("gp{g}_busy"), 1))
                 .collect();
             let r_scope = v.scope("renderers");
-            let renderer = (0..renderers.len())
+            let renderer = (0..renderers)
                 .map(|r| v.wire(r_scope, &format!("renderer{r}_busy"), 1))
                 .collect();
             let ring_scope = v.scope("ring");
             let mut token_at = Vec::new();
             let mut token_held = Vec::new();
             for ch in 0..channels {
-                token_at.push(v.wire(ring_scope, &format!("ch{ch}_token_node"), 16));
+                token_at.push(v.text(ring_scope, &format!("ch{ch}_token_at"), "-"));
                 token_held.push(v.wire(ring_scope, &format!("ch{ch}_busy"), 1));
             }
             self.signals = Some(Signals {
@@ -163,13 +232,27 @@ impl Recorder {
         });
     }
 
-    pub(crate) fn gp_busy(&mut self, gp: u32, start: Tick, end: Tick) {
+    pub(crate) fn gp_busy(&mut self, gp: u32, start: Tick, end: Tick, busy: Busy) {
+        let g = gp as usize;
         if let (Some(c), Some(t)) = (&mut self.chrome, &self.tracks) {
-            c.slice_grouped(t.gp[gp as usize], "busy", start, end, Tick(1));
+            let name = match busy {
+                Busy::Compute => "compute",
+                Busy::Send => "message send",
+                Busy::Receive => "message receive",
+            };
+            c.slice_grouped(t.gp[g], name, start, end, Tick(1));
+            if let Some(last) = self.flows.gp_last_busy.get_mut(g) {
+                *last = (start, end);
+            }
+            if busy == Busy::Receive
+                && let Some(id) = self.flows.gp_inbox.get_mut(g).and_then(VecDeque::pop_front)
+            {
+                c.flow(t.gp[g], FLOW, id.0, FlowStep::End, mid(start, end));
+            }
         }
         if let (Some(v), Some(s)) = (&mut self.vcd, &self.signals) {
-            v.change(s.gp[gp as usize], start, 1);
-            v.change(s.gp[gp as usize], end, 0);
+            v.change(s.gp[g], start, 1);
+            v.change(s.gp[g], end, 0);
         }
     }
 
@@ -177,9 +260,28 @@ impl Recorder {
         self.gp_end.insert(gp, at);
     }
 
-    pub(crate) fn renderer_command(&mut self, r: u32, kind: &str, start: Tick, end: Tick) {
+    pub(crate) fn renderer_command(&mut self, r: u32, started: &Started) {
+        let &Started {
+            kind, start, end, ..
+        } = started;
         if let (Some(c), Some(t)) = (&mut self.chrome, &self.tracks) {
-            c.slice_grouped(t.renderer[r as usize], kind, start, end, self.renderer_gap);
+            let track = t.renderer[r as usize];
+            c.slice_grouped(track, kind, start, end, self.renderer_gap);
+            // The message's flow passes its first, readback and last commands: enough to see
+            // where its work begins, what it asked back, and where it ends.
+            if started.first_in_message || started.last_in_message || started.readback {
+                let step = if started.last_in_message {
+                    FlowStep::End
+                } else {
+                    FlowStep::Step
+                };
+                c.flow(track, FLOW, started.message.0, step, mid(start, end));
+            }
+            if started.readback
+                && let Some(last) = self.flows.readback.get_mut(r as usize)
+            {
+                *last = Some((start, end, started.message));
+            }
         }
         if let (Some(v), Some(s)) = (&mut self.vcd, &self.signals) {
             v.change(s.renderer[r as usize], start, 1);
@@ -187,40 +289,97 @@ impl Recorder {
         }
     }
 
-    pub(crate) fn message_delivered(
-        &mut self,
-        id: MessageId,
-        from: Unit,
-        to: Unit,
-        sent: Tick,
-        delivered: Tick,
-        words: u32,
-    ) {
+    /// Message `id` left `from` (the ring took it) at `at`: its flow starts in the sender's slice.
+    pub(crate) fn message_sent(&mut self, id: MessageId, from: Unit, at: Tick) {
+        let (Some(c), Some(t)) = (&mut self.chrome, &self.tracks) else {
+            return;
+        };
+        match from {
+            Unit::Gp(g) => {
+                let (start, end) = self
+                    .flows
+                    .gp_last_busy
+                    .get(g as usize)
+                    .copied()
+                    .unwrap_or((at, at));
+                c.flow(
+                    t.gp[g as usize],
+                    FLOW,
+                    id.0,
+                    FlowStep::Start,
+                    mid(start, end),
+                );
+            }
+            Unit::Renderer(r) => {
+                if let Some(Some((start, end, asked))) = self.flows.readback.get(r as usize) {
+                    c.flow(
+                        t.renderer[r as usize],
+                        FLOW,
+                        id.0,
+                        FlowStep::Start,
+                        mid(*start, *end),
+                    );
+                    self.flows.answers.insert(id, *asked);
+                }
+            }
+            Unit::FrameBuffer | Unit::Host => {}
+        }
+    }
+
+    /// Message `id` was handed to GP `gp`'s mailbox: its next receive takes it.
+    pub(crate) fn handed_to_gp(&mut self, gp: u32, id: MessageId) {
+        if self.chrome.is_some()
+            && let Some(inbox) = self.flows.gp_inbox.get_mut(gp as usize)
+        {
+            inbox.push_back(id);
+        }
+    }
+
+    pub(crate) fn message_delivered(&mut self, d: &Delivery, from: Unit, to: Unit) {
         let (Some(c), Some(t)) = (&mut self.chrome, &mut self.tracks) else {
             return;
         };
-        let lane = match t.lanes.iter().position(|l| l.free_from <= sent) {
+        let (sent, delivered) = (d.sent, d.delivered);
+        let channels = d.channels;
+        let lanes = t.lanes.entry(channels).or_default();
+        let lane = match lanes.iter().position(|l| l.free_from <= sent) {
             Some(i) => i,
             None => {
-                let track = c.track("Ring", &format!("messages lane {}", t.lanes.len()));
-                t.lanes.push(Lane {
+                let process = if channels.count_ones() == 1 {
+                    format!("Ring channel {}", channel_list(channels, ""))
+                } else {
+                    format!("Ring channels {}", channel_list(channels, "+"))
+                };
+                let track = c.track(&process, &format!("lane {}", lanes.len()));
+                lanes.push(Lane {
                     track,
                     free_from: Tick::ZERO,
                 });
-                t.lanes.len() - 1
+                lanes.len() - 1
             }
         };
-        t.lanes[lane].free_from = delivered;
-        c.slice(
-            t.lanes[lane].track,
-            &format!("{from} -> {to}"),
-            sent,
-            delivered,
-            [
-                ("id", JsonValue::from(id.0)),
-                ("words", JsonValue::from(words)),
-            ],
-        );
+        lanes[lane].free_from = delivered;
+        let track = lanes[lane].track;
+        let n = self.units.len() as u32;
+        let hops = (d.dst.0 + n - d.src.0) % n.max(1);
+        let mut args: Vec<(&str, JsonValue)> = vec![
+            ("id", JsonValue::from(d.id.0)),
+            ("words", JsonValue::from(d.words)),
+            ("packets", JsonValue::from(d.packets)),
+            ("channels", JsonValue::from(channel_list(channels, ","))),
+            ("hops", JsonValue::from(hops)),
+            ("token_wait_ps", JsonValue::from((d.started - sent).0)),
+        ];
+        if let Some(asked) = self.flows.answers.remove(&d.id) {
+            args.push(("answers", JsonValue::from(asked.0)));
+        }
+        c.slice(track, &format!("{from} -> {to}"), sent, delivered, args);
+        // The frame buffer and the host have no track: a message to them ends on the ring.
+        let step = match to {
+            Unit::FrameBuffer | Unit::Host => FlowStep::End,
+            Unit::Gp(_) | Unit::Renderer(_) => FlowStep::Step,
+        };
+        c.flow(track, FLOW, d.id.0, step, mid(sent, delivered));
     }
 
     pub(crate) fn ring_sample(&mut self, now: Tick, ring: &Ring) {
@@ -230,25 +389,55 @@ impl Recorder {
         if let Some(c) = &mut self.chrome {
             let cap = self.queue_capacity;
             for (i, unit) in self.units.iter().enumerate() {
-                let free = ring.output_free_words(NodeId(i as u32)).unwrap_or(0);
-                let used = cap.saturating_sub(free);
-                if used != self.queue_words[i] {
-                    self.queue_words[i] = used;
-                    c.counter("Ring", &format!("output queue {unit}"), now, used as i64);
+                let node = NodeId(i as u32);
+                let out = cap.saturating_sub(ring.output_free_words(node).unwrap_or(cap));
+                let inp = cap.saturating_sub(ring.input_free_words(node).unwrap_or(cap));
+                let (last_out, last_in) = self.queue_words[i];
+                if out != last_out {
+                    c.counter(
+                        "Ring queues",
+                        &format!("{unit} output words"),
+                        now,
+                        out as i64,
+                    );
                 }
+                if inp != last_in {
+                    c.counter(
+                        "Ring queues",
+                        &format!("{unit} input words"),
+                        now,
+                        inp as i64,
+                    );
+                }
+                self.queue_words[i] = (out, inp);
             }
         }
-        if let (Some(v), Some(s)) = (&mut self.vcd, &self.signals) {
-            for (ch, (&at, &held)) in s.token_at.iter().zip(&s.token_held).enumerate() {
-                let (node, busy) = match ring.token_at(ch as u32) {
-                    Some(TokenLocation::Held { by }) => (by.0, 1),
-                    Some(TokenLocation::At(n)) => (n.0, 0),
-                    Some(TokenLocation::Between { from, .. }) => (from.0, 0),
-                    None => (0, 0),
-                };
-                v.change(at, now, u64::from(node));
-                v.change(held, now, busy);
+        for ch in 0..self.token.len() {
+            let (node, held) = match ring.token_at(ch as u32) {
+                Some(TokenLocation::Held { by }) => (by.0, true),
+                Some(TokenLocation::At(n)) => (n.0, false),
+                Some(TokenLocation::Between { from, .. }) => (from.0, false),
+                None => (u32::MAX, false),
+            };
+            let (was_held, was_at) = self.token[ch];
+            if let Some(c) = &mut self.chrome
+                && held != was_held
+                && ch < 64
+            {
+                let process = format!("Ring channel {ch}");
+                c.counter(&process, "token held", now, i64::from(held));
             }
+            if let (Some(v), Some(s)) = (&mut self.vcd, &self.signals) {
+                if node != was_at {
+                    let name = self
+                        .units
+                        .get(node as usize)
+                        .map_or_else(|| "-".to_owned(), Unit::to_string);
+                    v.change_text(s.token_at[ch], now, &name);
+                }
+                v.change(s.token_held[ch], now, u64::from(held));
+            }
+            self.token[ch] = (held, node);
         }
     }
 

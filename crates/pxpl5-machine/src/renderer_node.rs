@@ -54,6 +54,11 @@ pub(crate) struct Started {
     pub arrival: Option<Box<(Tick, Profile)>>,
     /// Whether it left readback messages for the ring.
     pub readback: bool,
+    /// The ring message it came in, and whether it is that message's first and last command
+    /// (for the trace's flows).
+    pub message: MessageId,
+    pub first_in_message: bool,
+    pub last_in_message: bool,
 }
 
 pub(crate) struct RendererNode {
@@ -191,8 +196,11 @@ impl RendererNode {
             kind: q.command.kind(),
             start,
             end,
+            first_in_message: q.arrival.is_some(),
             arrival: q.arrival,
             readback,
+            message: q.message,
+            last_in_message: q.last_in_message,
         }))
     }
 

@@ -900,15 +900,24 @@ fn check_vcd(text: &str, end: Tick) {
     let mut names = Vec::new();
     for line in head.lines().filter(|l| l.trim_start().starts_with("$var")) {
         let t: Vec<&str> = line.split_whitespace().collect();
-        // $var wire WIDTH ID NAME [range] $end
-        assert_eq!(t[1], "wire", "{line}");
+        // $var wire WIDTH ID NAME [range] $end, or a string variable (the token's position)
+        assert!(t[1] == "wire" || t[1] == "string", "{line}");
         ids.insert(t[3].to_string());
         names.push(t[4].to_string());
     }
     for want in ["gp0_busy", "gp1_busy", "renderer0_busy", "renderer1_busy"] {
         assert!(names.iter().any(|n| n == want), "no {want} in {names:?}");
     }
-    assert!(names.iter().any(|n| n == "ch1_token_node"));
+    assert!(names.iter().any(|n| n == "ch1_token_at"));
+    // The token's position reads as node names, listed in the header.
+    assert!(
+        head.contains("ring order (node: unit), the values of chN_token_at: 0 GP 0, "),
+        "{head}"
+    );
+    assert!(
+        body.contains("sGP_0 ") || body.contains("sRenderer_0 "),
+        "token at a named node"
+    );
     let mut last: Option<u64> = None;
     let mut changes = 0;
     for line in body.lines().map(str::trim).filter(|l| !l.is_empty()) {
@@ -916,6 +925,14 @@ fn check_vcd(text: &str, end: Tick) {
             let t: u64 = t.parse().expect("timestamp");
             assert!(last.is_none_or(|l| t > l), "timestamps increase: {line}");
             last = Some(t);
+        } else if let Some(rest) = line.strip_prefix('s') {
+            let (text, id) = rest.split_once(' ').expect("string change");
+            assert!(
+                text == "-" || text.contains('_') || text == "host",
+                "{line}"
+            );
+            assert!(ids.contains(id), "{line}");
+            changes += 1;
         } else if line.starts_with('$') {
             assert!(["$dumpvars", "$end"].contains(&line), "{line}");
         } else if let Some(rest) = line.strip_prefix('b') {
@@ -1010,7 +1027,9 @@ fn mixed_program_is_deterministic_with_traces_and_traces_are_well_formed() {
         "reply",
         "work",
         "tail",
-        "busy",
+        "compute",
+        "message send",
+        "message receive",
         "set_origin",
         "qee_store",
         "add",
@@ -1067,6 +1086,237 @@ fn mixed_program_is_deterministic_with_traces_and_traces_are_well_formed() {
         if let Some(t) = line.strip_prefix('#') {
             assert!(t.parse::<u64>().unwrap() <= 10_000_000, "{line}");
         }
+    }
+}
+
+/// A track of a Chrome trace: (pid, tid).
+type TrackKey = (u64, u64);
+/// A slice read back: start and end in ps, name, args.
+type ReadSlice = (u64, u64, String, Value);
+/// A flow event read back: phase, track, ps.
+type FlowEvent = (String, TrackKey, u64);
+
+/// A Chrome trace read back: track names, slices per track, flow events per flow id.
+struct TraceIndex {
+    /// (pid, tid) -> (process name, thread name).
+    tracks: std::collections::BTreeMap<(u64, u64), (String, String)>,
+    /// (pid, tid) -> slices as (start ps, end ps, name, args), instants included (length 0).
+    slices: std::collections::BTreeMap<TrackKey, Vec<ReadSlice>>,
+    /// Flow id -> (phase, (pid, tid), ps), in file order (which is time order).
+    flows: std::collections::BTreeMap<u64, Vec<FlowEvent>>,
+}
+
+impl TraceIndex {
+    fn new(events: &[Value]) -> TraceIndex {
+        let ps = |v: &Value| -> u64 { (v.as_f64().unwrap() * 1e6).round() as u64 };
+        let key = |e: &Value| (e["pid"].as_u64().unwrap(), e["tid"].as_u64().unwrap_or(0));
+        let mut process = std::collections::BTreeMap::new();
+        let mut tracks = std::collections::BTreeMap::new();
+        let mut slices: std::collections::BTreeMap<_, Vec<_>> = Default::default();
+        let mut flows: std::collections::BTreeMap<_, Vec<_>> = Default::default();
+        for e in events {
+            let name = e["name"].as_str().unwrap_or_default().to_owned();
+            match e["ph"].as_str().unwrap() {
+                "M" if name == "process_name" => {
+                    process.insert(e["pid"].as_u64().unwrap(), e["args"]["name"].clone());
+                }
+                "M" if name == "thread_name" => {
+                    let p = process[&e["pid"].as_u64().unwrap()].as_str().unwrap();
+                    let t = e["args"]["name"].as_str().unwrap();
+                    tracks.insert(key(e), (p.to_owned(), t.to_owned()));
+                }
+                "X" | "i" => {
+                    let start = ps(&e["ts"]);
+                    let end = start + e.get("dur").map_or(0, ps);
+                    slices
+                        .entry(key(e))
+                        .or_default()
+                        .push((start, end, name, e["args"].clone()));
+                }
+                ph @ ("s" | "t" | "f") => {
+                    assert_eq!(e["bp"], "e", "flows bind to the enclosing slice: {e}");
+                    flows.entry(e["id"].as_u64().unwrap()).or_default().push((
+                        ph.to_owned(),
+                        key(e),
+                        ps(&e["ts"]),
+                    ));
+                }
+                _ => {}
+            }
+        }
+        TraceIndex {
+            tracks,
+            slices,
+            flows,
+        }
+    }
+
+    /// The slice a flow event at `at` on `track` binds to: the innermost one enclosing it.
+    fn bound(&self, track: TrackKey, at: u64) -> Option<&ReadSlice> {
+        self.slices
+            .get(&track)?
+            .iter()
+            .filter(|(s, e, ..)| *s <= at && at < *e)
+            .min_by_key(|(s, e, ..)| e - s)
+    }
+
+    /// Flow `id`'s path: per event, (phase, "process/thread", bound slice's name).
+    fn path(&self, id: u64) -> Vec<(String, String, String)> {
+        self.flows[&id]
+            .iter()
+            .map(|(ph, track, at)| {
+                let (p, t) = &self.tracks[track];
+                let slice = self
+                    .bound(*track, *at)
+                    .unwrap_or_else(|| panic!("flow {id} {ph} at {at} ps on {p}/{t}: no slice"));
+                (ph.clone(), format!("{p}/{t}"), slice.2.clone())
+            })
+            .collect()
+    }
+}
+
+#[test]
+fn every_message_is_a_flow_from_its_sender_through_the_ring_to_its_receiver() {
+    let run = run_mixed(Fidelity::Integer, Some("0.."), None);
+    let index = TraceIndex::new(&trace_events(&chrome_bytes(&run.result)));
+    // One flow per message the ring carried, each a chain s, t..., f bound to slices.
+    let messages: Vec<(u64, &String, &Value)> = index
+        .slices
+        .iter()
+        .filter(|(track, _)| index.tracks[track].0.starts_with("Ring channel"))
+        .flat_map(|(_, slices)| {
+            slices
+                .iter()
+                .map(|(_, _, name, args)| (args["id"].as_u64().unwrap(), name, args))
+        })
+        .collect();
+    assert!(messages.len() >= 5, "{}", messages.len());
+    assert_eq!(index.flows.len(), messages.len());
+    for (id, name, _) in &messages {
+        let path = index.path(*id);
+        let phases: Vec<&str> = path.iter().map(|(ph, ..)| ph.as_str()).collect();
+        assert_eq!(phases.first(), Some(&"s"), "{name}: {path:?}");
+        assert_eq!(phases.last(), Some(&"f"), "{name}: {path:?}");
+        assert!(
+            phases[1..phases.len() - 1].iter().all(|&p| p == "t"),
+            "{path:?}"
+        );
+        // The ring step is the message's own slice.
+        assert!(
+            path.iter().any(|(_, _, slice)| slice == *name),
+            "{name}: {path:?}"
+        );
+    }
+
+    // The readback: GP 0's command message runs on Renderer 0, whose readback command sends
+    // the reply that GP 0 receives.
+    let (reply, _, args) = messages
+        .iter()
+        .find(|(_, name, _)| name.as_str() == "Renderer 0 -> GP 0")
+        .expect("the readback reply");
+    let asked = args["answers"]
+        .as_u64()
+        .expect("the reply names its request");
+    let request = index.path(asked);
+    assert_eq!(request[0].1, "GPs/GP 0");
+    assert_eq!(request[0].2, "message send");
+    assert!(
+        request[1].1.starts_with("Ring channel 0/lane "),
+        "{request:?}"
+    );
+    assert_eq!(request[1].2, "GP 0 -> Renderer 0");
+    assert!(
+        request[2..]
+            .iter()
+            .all(|(_, track, _)| track == "Renderers/Renderer 0")
+    );
+    assert!(
+        request.iter().any(|(_, _, slice)| slice == "readback"),
+        "{request:?}"
+    );
+    let answer = index.path(*reply);
+    assert_eq!(
+        answer
+            .iter()
+            .map(|(ph, track, slice)| (ph.as_str(), track.as_str(), slice.as_str()))
+            .collect::<Vec<_>>(),
+        [
+            ("s", "Renderers/Renderer 0", "readback"),
+            ("t", answer[1].1.as_str(), "Renderer 0 -> GP 0"),
+            ("f", "GPs/GP 0", "message receive"),
+        ]
+    );
+    // The reply leaves from the very point the request's flow passes on the readback command.
+    let start = index.flows[reply][0].clone();
+    assert!(
+        index.flows[&asked]
+            .iter()
+            .any(|(_, track, at)| (*track, *at) == (start.1, start.2))
+    );
+}
+
+#[test]
+fn ring_lanes_are_named_by_channel_and_counters_by_what_they_count() {
+    // Two channels: each message sits on the lanes of the channels that carried it.
+    let run = run_mixed(Fidelity::Integer, Some("0.."), None);
+    let events = trace_events(&chrome_bytes(&run.result));
+    let index = TraceIndex::new(&events);
+    let mut used = BTreeSet::new();
+    for (track, slices) in &index.slices {
+        let (process, thread) = &index.tracks[track];
+        let Some(ch) = process.strip_prefix("Ring channel ") else {
+            continue;
+        };
+        assert!(thread.starts_with("lane "), "{thread}");
+        for (start, end, name, args) in slices {
+            assert!(name.contains(" -> "), "{name}");
+            assert_eq!(args["channels"].as_str(), Some(ch), "{name} on {process}");
+            assert!(end >= start);
+            assert!(args["hops"].as_u64().unwrap() >= 1);
+            assert!(args["token_wait_ps"].as_u64().unwrap() <= end - start);
+            used.insert(ch.to_owned());
+        }
+    }
+    assert!(!used.is_empty());
+    // No zero-length slice: those are instants.
+    assert!(
+        events
+            .iter()
+            .filter(|e| e["ph"] == "X")
+            .all(|e| e["dur"].as_f64().unwrap() > 0.0)
+    );
+    // Counters: per channel whether its token is held, per node its queues.
+    let pids: std::collections::BTreeMap<u64, &str> = events
+        .iter()
+        .filter(|e| e["ph"] == "M" && e["name"] == "process_name")
+        .map(|e| {
+            (
+                e["pid"].as_u64().unwrap(),
+                e["args"]["name"].as_str().unwrap(),
+            )
+        })
+        .collect();
+    let counters: BTreeSet<(&str, &str)> = events
+        .iter()
+        .filter(|e| e["ph"] == "C")
+        .map(|e| {
+            (
+                pids[&e["pid"].as_u64().unwrap()],
+                e["name"].as_str().unwrap(),
+            )
+        })
+        .collect();
+    for want in [
+        ("Ring channel 0", "token held"),
+        ("Ring channel 1", "token held"),
+        ("Ring queues", "GP 0 output words"),
+        ("Ring queues", "GP 1 input words"),
+        ("Ring queues", "Renderer 0 input words"),
+    ] {
+        assert!(
+            counters.contains(&want),
+            "no counter {want:?} in {counters:?}"
+        );
     }
 }
 

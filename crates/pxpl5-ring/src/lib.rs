@@ -153,8 +153,13 @@ pub struct Delivery {
     pub packets: u32,
     /// The `now` it was sent with.
     pub sent: Tick,
+    /// When its first packet started on a channel (the sender held the token): the time from
+    /// `sent` to it is queueing and token wait.
+    pub started: Tick,
     /// When its last word arrived.
     pub delivered: Tick,
+    /// The channels its packets went on: bit `c` for channel `c` (channels above 63 share bit 63).
+    pub channels: u64,
 }
 
 /// Where a channel's token is (see [`Ring::token_at`]).

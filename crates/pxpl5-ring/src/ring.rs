@@ -38,6 +38,10 @@ struct Message {
     sent: Tick,
     packets_left: u32,
     delivered: bool,
+    /// Bit `c` set when a packet of it went on channel `c` (reported in its [`Delivery`]).
+    channels: u64,
+    /// The clock its first packet started on, if one has.
+    first_start: Option<u64>,
 }
 
 /// The latest packet a channel carried: enough to say whether the token is held and how many of
@@ -302,6 +306,8 @@ impl Ring {
                 sent: now,
                 packets_left: packets,
                 delivered: false,
+                channels: 0,
+                first_start: None,
             },
         );
         Ok(id)
@@ -422,6 +428,11 @@ impl Ring {
             );
         }
         self.flow.offsets[q] -= 1;
+        if let Some(m) = self.messages.get_mut(&pkt.msg) {
+            // Channels above 63 share bit 63: the mask is a trace aid, not a model input.
+            m.channels |= 1 << cap.channel.min(63);
+            m.first_start.get_or_insert(cap.start);
+        }
         self.schedule(
             cap.end_tx,
             Event::OutputFree {
@@ -512,7 +523,11 @@ impl Ring {
                             words: m.words,
                             packets: m.packets,
                             sent: m.sent,
+                            started: m
+                                .first_start
+                                .map_or(m.sent, |c| self.clock.to_ticks(Cycles(c)).max(m.sent)),
                             delivered: self.clock.to_ticks(Cycles(clock)),
+                            channels: m.channels,
                         });
                     }
                 }

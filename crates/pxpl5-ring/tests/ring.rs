@@ -126,6 +126,11 @@ fn four_channels_carry_four_messages_in_parallel() {
             idle_delivery(&c, ring.clock(), Tick::ZERO, 100, 3, Cycles(0))
         );
     }
+    // Each went on the channel whose token stood at its sender (node 2c for channel c), at once.
+    for del in &d {
+        assert_eq!(del.channels, 1 << (del.src.0 / 2), "{del:?}");
+        assert_eq!(del.started, Tick::ZERO);
+    }
     let stats = ring.stats();
     for ch in &stats.channels {
         assert_eq!((ch.packets, ch.payload_words, ch.header_words), (1, 100, 1));
@@ -139,6 +144,9 @@ fn four_channels_carry_four_messages_in_parallel() {
     }
     for del in drain(&mut ring) {
         assert_eq!(del.delivered, at(1 + 51 + 2));
+        // The token wait: one clock before the first packet started.
+        assert_eq!(del.started, at(1));
+        assert_eq!(del.channels.count_ones(), 1);
     }
     assert_eq!(ring.stats().total.token_wait, Cycles(4));
 }

@@ -8,9 +8,15 @@
 //! {"ph":"M","name":"process_name","pid":1,"args":{"name":"GPs"}},
 //! ...
 //! {"ph":"X","name":"transform","pid":1,"tid":2,"ts":0.025000,"dur":0.050000,"args":{...}}
+//! {"ph":"s","cat":"flow","name":"message","id":7,"pid":1,"tid":2,"ts":0.050000,"bp":"e"}
 //! ]}
 //! ```
 //!
+//! * **Instants.** A slice of zero length is written as a thread instant (`"ph":"i"`), which
+//!   viewers draw as a marker; an invisible zero-width box helps no one.
+//! * **Flows.** [`ChromeTrace::flow`] writes `s`/`t`/`f` events with `"bp":"e"`: each binds to
+//!   the slice of its track that encloses its timestamp, and Perfetto draws an arrow from each to
+//!   the next of the same name and id.
 //! * **Time.** Chrome's timestamps are microseconds. `ts` and `dur` are written as decimals with
 //!   exactly six fractional digits, computed from integer picoseconds by integer division
 //!   (1 us = 1,000,000 ps), so they are exact (six digits of a microsecond are a picosecond) and
@@ -74,9 +80,44 @@ struct Track {
 
 #[derive(Clone, Copy, Debug)]
 enum Kind {
-    Slice { track: TrackId, dur: u64 },
-    Instant { track: TrackId },
-    Counter { process: usize, value: i64 },
+    Slice {
+        track: TrackId,
+        dur: u64,
+    },
+    Instant {
+        track: TrackId,
+    },
+    Counter {
+        process: usize,
+        value: i64,
+    },
+    Flow {
+        track: TrackId,
+        id: u64,
+        step: FlowStep,
+    },
+}
+
+/// Where an event of a flow (a chain of arrows between slices, [`ChromeTrace::flow`]) stands in
+/// its chain.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum FlowStep {
+    /// The first slice of the chain (`"ph":"s"`).
+    Start,
+    /// A slice in the middle (`"ph":"t"`).
+    Step,
+    /// The last slice (`"ph":"f"`).
+    End,
+}
+
+impl FlowStep {
+    fn phase(self) -> &'static str {
+        match self {
+            FlowStep::Start => "s",
+            FlowStep::Step => "t",
+            FlowStep::End => "f",
+        }
+    }
 }
 
 /// A recorded event; `name` indexes the interned names (high-rate events repeat few names).
@@ -283,6 +324,12 @@ impl ChromeTrace {
         at: Tick,
         args: impl IntoIterator<Item = (K, JsonValue)>,
     ) {
+        let args = args.into_iter().map(|(k, v)| (k.into(), v)).collect();
+        self.point(Kind::Instant { track }, name, at, args);
+    }
+
+    /// Records an event of one instant, unless `at` lies outside the window.
+    fn point(&mut self, kind: Kind, name: &str, at: Tick, args: Args) {
         if !self.window.contains(at) {
             return;
         }
@@ -290,10 +337,18 @@ impl ChromeTrace {
             ts: at.as_ps(),
             seq: self.next_seq(),
             name: self.intern(name),
-            kind: Kind::Instant { track },
-            args: args.into_iter().map(|(k, v)| (k.into(), v)).collect(),
+            kind,
+            args,
         };
         self.events.push(event);
+    }
+
+    /// Records a step of flow `id` (named `name`: Perfetto links the events of one flow by name
+    /// and id) at `at` on `track`. The step binds to the slice of `track` enclosing `at`
+    /// (`"bp":"e"`), so `at` should lie strictly inside a slice: a slice's midpoint, say. Perfetto
+    /// draws an arrow from each step to the next in time order.
+    pub fn flow(&mut self, track: TrackId, name: &str, id: u64, step: FlowStep, at: Tick) {
+        self.point(Kind::Flow { track, id, step }, name, at, Args::new());
     }
 
     /// Records that counter `name` of `process` (created on first use, like a track's process)
@@ -438,7 +493,7 @@ impl ChromeTrace {
     fn write_event<W: Write>(&self, w: &mut W, e: &OutEvent<'_>) -> io::Result<()> {
         let name = &self.names[e.name as usize];
         match e.kind {
-            Kind::Slice { track, dur } => {
+            Kind::Slice { track, dur } if dur > 0 => {
                 let t = &self.tracks[track.0];
                 w.write_all(b"{\"ph\":\"X\",\"name\":")?;
                 write_string(w, name)?;
@@ -451,7 +506,8 @@ impl ChromeTrace {
                     Micros(dur)
                 )?;
             }
-            Kind::Instant { track } => {
+            // A zero-length slice is an instant: viewers draw a marker, not an invisible box.
+            Kind::Instant { track } | Kind::Slice { track, .. } => {
                 let t = &self.tracks[track.0];
                 w.write_all(b"{\"ph\":\"i\",\"s\":\"t\",\"name\":")?;
                 write_string(w, name)?;
@@ -470,6 +526,23 @@ impl ChromeTrace {
                     w,
                     ",\"pid\":{},\"ts\":{},\"args\":{{\"value\":{value}}}}}",
                     self.processes[process].pid,
+                    Micros(e.ts)
+                )?;
+                return Ok(());
+            }
+            Kind::Flow { track, id, step } => {
+                let t = &self.tracks[track.0];
+                write!(
+                    w,
+                    "{{\"ph\":\"{}\",\"cat\":\"flow\",\"name\":",
+                    step.phase()
+                )?;
+                write_string(w, name)?;
+                write!(
+                    w,
+                    ",\"id\":{id},\"pid\":{},\"tid\":{},\"ts\":{},\"bp\":\"e\"}}",
+                    self.processes[t.process].pid,
+                    t.tid,
                     Micros(e.ts)
                 )?;
                 return Ok(());

@@ -1,8 +1,8 @@
 //! Trace writers over simulated time: the simulator's `--trace FILE` (Chrome trace-event JSON, for
 //! Perfetto or chrome://tracing) and `--vcd FILE` (Value Change Dump, for GTKWave or Surfer).
 //!
-//! The crate knows nothing of Pixel-Planes: it offers tracks, slices, instants and counters
-//! ([`ChromeTrace`]) and scoped wires ([`VcdTrace`]), all stamped with [`Tick`]s of simulated time,
+//! The crate knows nothing of Pixel-Planes: it offers tracks, slices, instants, counters and flows
+//! ([`ChromeTrace`]) and scoped wires and string variables ([`VcdTrace`]), all stamped with [`Tick`]s of simulated time,
 //! never host time. Both builders take a [`TraceWindow`] (parsed from user input such as `0..2ms`)
 //! and drop or clip what lies outside it as it is recorded. Both write byte-identical output for
 //! identical input, whatever the platform and whatever order events at different times were
@@ -36,8 +36,8 @@ mod vcd_trace;
 mod window;
 
 pub use chrome::{
-    Args, ChromeTrace, Micros, NestingError, RESERVED_METADATA_KEYS, SliceSpan, TIME_UNIT_NOTE,
-    TrackId,
+    Args, ChromeTrace, FlowStep, Micros, NestingError, RESERVED_METADATA_KEYS, SliceSpan,
+    TIME_UNIT_NOTE, TrackId,
 };
 pub use json::JsonValue;
 pub use pxpl5_sim::Tick;

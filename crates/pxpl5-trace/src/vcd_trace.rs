@@ -71,6 +71,7 @@ struct Scope {
 #[derive(Debug)]
 struct Signal {
     name: String,
+    /// Bits of a wire; 0 for a string variable, whose values index [`VcdTrace::texts`].
     width: u32,
     /// The value at the window start and when it was set (for folding changes recorded out of
     /// order: the latest one wins).
@@ -87,6 +88,11 @@ pub struct VcdTrace {
     scope_ids: HashMap<String, ScopeId>,
     signals: Vec<Signal>,
     end: Option<Tick>,
+    /// Comments written in the header, in order (e.g. a legend of the values of a wire).
+    comments: Vec<String>,
+    /// The values string variables take, interned: a change stores the index.
+    texts: Vec<String>,
+    text_ids: HashMap<String, u64>,
 }
 
 impl Default for VcdTrace {
@@ -104,6 +110,9 @@ impl VcdTrace {
             scope_ids: HashMap::new(),
             signals: Vec::new(),
             end: None,
+            comments: Vec::new(),
+            texts: Vec::new(),
+            text_ids: HashMap::new(),
         }
     }
 
@@ -162,6 +171,44 @@ impl VcdTrace {
         Ok(id)
     }
 
+    /// A new string variable `name` in `scope` (`$var string`, which GTKWave and Surfer show as
+    /// text), initially `initial`; set it with [`VcdTrace::change_text`]. Its values are written
+    /// as VCD names are: printable ASCII, anything else `_`.
+    pub fn text(&mut self, scope: ScopeId, name: &str, initial: &str) -> SignalId {
+        let id = SignalId(self.signals.len());
+        let initial = self.text_id(initial);
+        self.signals.push(Signal {
+            name: name.to_owned(),
+            width: 0,
+            initial: Some((Tick::ZERO, initial)),
+            changes: Vec::new(),
+        });
+        self.scopes[scope.0].signals.push(id.0);
+        id
+    }
+
+    /// Records that string variable `signal` (from [`VcdTrace::text`]) reads `value` from `at`.
+    pub fn change_text(&mut self, signal: SignalId, at: Tick, value: &str) {
+        let value = self.text_id(value);
+        self.change(signal, at, value);
+    }
+
+    /// Adds a `$comment` to the header (after the builder's own), e.g. what a wire's numbers mean.
+    pub fn comment(&mut self, text: &str) {
+        self.comments.push(text.to_owned());
+    }
+
+    fn text_id(&mut self, text: &str) -> u64 {
+        let text = vcd_name(text);
+        if let Some(&id) = self.text_ids.get(&text) {
+            return id;
+        }
+        let id = self.texts.len() as u64;
+        self.texts.push(text.clone());
+        self.text_ids.insert(text, id);
+        id
+    }
+
     /// Records that `signal` takes `value` at `at`. Bits above the wire's width are dropped, as
     /// when a Verilog value is assigned to a narrower wire.
     pub fn change(&mut self, signal: SignalId, at: Tick, value: u64) {
@@ -196,19 +243,20 @@ impl VcdTrace {
         if self.window != TraceWindow::all() {
             out.comment(&format!("trace window {}", self.window))?;
         }
+        for c in &self.comments {
+            out.comment(c)?;
+        }
         out.timescale(1, TimescaleUnit::PS)?;
         for scope in &self.scopes {
             out.add_module(&vcd_name(&scope.name))?;
             for &index in &scope.signals {
                 let s = &self.signals[index];
                 let range = (s.width > 1).then(|| ReferenceIndex::Range(s.width as i32 - 1, 0));
-                out.var_def(
-                    VarType::Wire,
-                    s.width,
-                    id_code(index),
-                    &vcd_name(&s.name),
-                    range,
-                )?;
+                let (kind, width) = match s.width {
+                    0 => (VarType::String, 1),
+                    w => (VarType::Wire, w),
+                };
+                out.var_def(kind, width, id_code(index), &vcd_name(&s.name), range)?;
             }
             out.upscope()?;
         }
@@ -221,8 +269,8 @@ impl VcdTrace {
             .collect();
         out.timestamp(self.window.start.as_ps())?;
         out.begin(SimulationCommand::Dumpvars)?;
-        for (index, s) in self.signals.iter().enumerate() {
-            write_value(&mut out, index, s.width, current[index])?;
+        for (index, &value) in current.iter().enumerate() {
+            self.write_value(&mut out, index, value)?;
         }
         out.end()?;
 
@@ -246,7 +294,7 @@ impl VcdTrace {
                 out.timestamp(at.as_ps())?;
                 last_time = at;
             }
-            write_value(&mut out, index, self.signals[index].width, value)?;
+            self.write_value(&mut out, index, value)?;
             current[index] = value;
         }
         if let Some(end) = self.end {
@@ -268,7 +316,23 @@ impl fmt::Display for VcdTrace {
     }
 }
 
-fn write_value<W: Write>(
+impl VcdTrace {
+    fn write_value<W: Write>(
+        &self,
+        out: &mut vcd::Writer<W>,
+        index: usize,
+        value: u64,
+    ) -> io::Result<()> {
+        let width = self.signals[index].width;
+        if width == 0 {
+            let text = self.texts.get(value as usize).map_or("_", String::as_str);
+            return out.change_string(id_code(index), text);
+        }
+        write_bits(out, index, width, value)
+    }
+}
+
+fn write_bits<W: Write>(
     out: &mut vcd::Writer<W>,
     index: usize,
     width: u32,
@@ -291,7 +355,8 @@ fn id_code(index: usize) -> IdCode {
 }
 
 fn mask(value: u64, width: u32) -> u64 {
-    if width >= 64 {
+    // Width 0 is a string variable: its value is an index, never masked.
+    if width >= 64 || width == 0 {
         value
     } else {
         value & ((1u64 << width) - 1)

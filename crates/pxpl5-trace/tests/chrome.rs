@@ -2,7 +2,7 @@
 //! without floats), deterministic, windowed, grouped, and nests as Perfetto needs.
 
 use pxpl5_sim::Tick;
-use pxpl5_trace::{Args, ChromeTrace, JsonValue, TraceWindow};
+use pxpl5_trace::{Args, ChromeTrace, FlowStep, JsonValue, TraceWindow};
 use serde_json::{Value, json};
 
 fn parse(trace: &ChromeTrace) -> Value {
@@ -176,7 +176,8 @@ fn timestamps_are_exact_microseconds() {
         lines[1]
     );
     assert!(
-        lines[2].contains(r#""ts":7.000000,"dur":0.000000"#),
+        // A zero-length slice is an instant.
+        lines[2].contains(r#""ph":"i","s":"t","name":"zero","pid":1,"tid":2,"ts":7.000000}"#),
         "{}",
         lines[2]
     );
@@ -400,10 +401,10 @@ fn window_drops_and_clips() {
         vec![
             r#"{"ph":"X","name":"covers","pid":1,"tid":2,"ts":1.000000,"dur":1.000000,"args":{"clipped":true}}"#,
             r#"{"ph":"X","name":"crosses start","pid":1,"tid":2,"ts":1.000000,"dur":0.500000,"args":{"clipped":true,"k":2}}"#,
-            r#"{"ph":"X","name":"zero at start","pid":1,"tid":2,"ts":1.000000,"dur":0.000000}"#,
+            r#"{"ph":"i","s":"t","name":"zero at start","pid":1,"tid":2,"ts":1.000000}"#,
             r#"{"ph":"i","s":"t","name":"instant at start","pid":1,"tid":2,"ts":1.000000}"#,
             r#"{"ph":"X","name":"inside","pid":1,"tid":2,"ts":1.100000,"dur":0.100000,"args":{"k":1}}"#,
-            r#"{"ph":"X","name":"backwards","pid":1,"tid":2,"ts":1.300000,"dur":0.000000}"#,
+            r#"{"ph":"i","s":"t","name":"backwards","pid":1,"tid":2,"ts":1.300000}"#,
             r#"{"ph":"X","name":"crosses end","pid":1,"tid":2,"ts":1.900000,"dur":0.100000,"args":{"clipped":true}}"#,
         ]
     );
@@ -687,4 +688,72 @@ fn json_writer_matches_serde_json() {
     assert!(text.contains(r#""units":["GP 0","\u0001\""]"#), "{text}");
     assert!(text.contains(r#""name":"s\r""#) && text.contains(r#""k\u0000":18446744073709551615"#));
     assert_eq!(reparsed["otherData"]["units"][1], "\u{1}\"");
+}
+
+#[test]
+fn zero_length_slices_are_written_as_instants_with_their_args() {
+    let mut t = ChromeTrace::default();
+    let lane = t.track("Ring channel 0", "lane 0");
+    t.slice(
+        lane,
+        "GP 0 -> GP 1",
+        Tick(5_000),
+        Tick(5_000),
+        [("id", JsonValue::from(7))],
+    );
+    t.slice(lane, "GP 1 -> GP 0", Tick(6_000), Tick(9_000), Args::new());
+    let ev = events(&t);
+    assert_eq!(ev.len(), 2);
+    assert_eq!(ev[0]["ph"], "i");
+    assert_eq!(ev[0]["s"], "t");
+    assert_eq!(ev[0]["ts"].as_f64(), Some(0.005));
+    assert_eq!(ev[0]["args"], json!({"id": 7}));
+    assert!(ev[0].get("dur").is_none());
+    assert_eq!(ev[1]["ph"], "X");
+    assert_eq!(ev[1]["dur"].as_f64(), Some(0.003));
+}
+
+#[test]
+fn flows_are_chains_of_bound_steps_in_time_order() {
+    let mut t = ChromeTrace::new(window("0..100ns"));
+    let gp = t.track("GPs", "GP 0");
+    let ring = t.track("Ring channel 0", "lane 0");
+    t.slice(gp, "message send", Tick(0), Tick(10_000), Args::new());
+    t.slice(
+        ring,
+        "GP 0 -> GP 1",
+        Tick(10_000),
+        Tick(30_000),
+        Args::new(),
+    );
+    // Recorded out of order: written in time order, after slices starting at the same time.
+    t.flow(ring, "message", 4, FlowStep::End, Tick(20_000));
+    t.flow(gp, "message", 4, FlowStep::Start, Tick(5_000));
+    // Outside the window: dropped.
+    t.flow(gp, "message", 5, FlowStep::Start, Tick(200_000));
+    let lines = event_lines(&t);
+    assert_eq!(
+        lines,
+        [
+            r#"{"ph":"X","name":"message send","pid":1,"tid":2,"ts":0.000000,"dur":0.010000}"#,
+            r#"{"ph":"s","cat":"flow","name":"message","id":4,"pid":1,"tid":2,"ts":0.005000,"bp":"e"}"#,
+            r#"{"ph":"X","name":"GP 0 -> GP 1","pid":3,"tid":4,"ts":0.010000,"dur":0.020000}"#,
+            r#"{"ph":"f","cat":"flow","name":"message","id":4,"pid":3,"tid":4,"ts":0.020000,"bp":"e"}"#,
+        ]
+    );
+    // The same events recorded in another order give the same bytes.
+    let mut u = ChromeTrace::new(window("0..100ns"));
+    let gp = u.track("GPs", "GP 0");
+    let ring = u.track("Ring channel 0", "lane 0");
+    u.flow(gp, "message", 4, FlowStep::Start, Tick(5_000));
+    u.slice(
+        ring,
+        "GP 0 -> GP 1",
+        Tick(10_000),
+        Tick(30_000),
+        Args::new(),
+    );
+    u.flow(ring, "message", 4, FlowStep::End, Tick(20_000));
+    u.slice(gp, "message send", Tick(0), Tick(10_000), Args::new());
+    assert_eq!(t.to_string(), u.to_string());
 }

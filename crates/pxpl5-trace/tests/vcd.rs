@@ -352,3 +352,48 @@ fn a_width_outside_1_to_64_is_an_error() {
     assert!(parse(&t).wires.is_empty());
     assert!(t.try_wire(s, "one", 1).is_ok() && t.try_wire(s, "wide", 64).is_ok());
 }
+
+#[test]
+fn text_variables_carry_names_and_comments_explain_them() {
+    let mut t = VcdTrace::default();
+    t.comment("ring order: 0 GP 0, 1 Renderer 0");
+    let ring = t.scope("ring");
+    let at = t.text(ring, "ch0_token_at", "-");
+    let held = t.wire(ring, "ch0_busy", 1);
+    t.change_text(at, Tick(10), "GP 0");
+    t.change(held, Tick(10), 1);
+    t.change_text(at, Tick(20), "Renderer 0");
+    // The same text again is no change.
+    t.change_text(at, Tick(30), "Renderer 0");
+    t.change_text(at, Tick(40), "GP 0");
+    let text = t.to_string();
+    assert!(
+        text.contains("$comment\n    ring order: 0 GP 0, 1 Renderer 0\n$end"),
+        "{text}"
+    );
+    let mut parser = vcd::Parser::new(text.as_bytes());
+    let header = parser.parse_header().unwrap();
+    let Some(scope) = header.items.iter().find_map(|item| match item {
+        ScopeItem::Scope(scope) => Some(scope),
+        _ => None,
+    }) else {
+        panic!("no scope: {text}");
+    };
+    let ScopeItem::Var(var) = &scope.items[0] else {
+        panic!("a variable: {text}");
+    };
+    assert_eq!(var.var_type, vcd::VarType::String);
+    assert_eq!(var.reference, "ch0_token_at");
+    let mut now = 0;
+    let mut texts = Vec::new();
+    for command in parser {
+        match command.unwrap() {
+            Command::Timestamp(t) => now = t,
+            Command::ChangeString(id, v) if id == var.code => texts.push((now, v)),
+            _ => {}
+        }
+    }
+    let want = [(0, "-"), (10, "GP_0"), (20, "Renderer_0"), (40, "GP_0")];
+    let want: Vec<(u64, String)> = want.iter().map(|&(t, v)| (t, v.to_owned())).collect();
+    assert_eq!(texts, want);
+}
