@@ -29,6 +29,6 @@ pub use machine::Machine;
 pub use memory::{MemoryError, MemoryEstimate};
 pub use monitor::{CHECK_EVERY, Monitor, Stop};
 pub use record::Recorder;
-pub use run::{RunError, RunOptions, RunResult};
+pub use run::{HostWork, RunError, RunOptions, RunResult};
 pub use stats::{GpStats, PathPart, PhaseSpan, RendererNodeStats, Resource, RunStats};
 pub use topology::node_order;

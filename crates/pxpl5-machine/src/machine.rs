@@ -36,7 +36,7 @@ use crate::gp_node::{Busy, GpNode, GpState, GpStep};
 use crate::monitor::{CHECK_EVERY, Stop};
 use crate::record::Recorder;
 use crate::renderer_node::{RendererNode, Started};
-use crate::run::{RunError, RunOptions, RunResult};
+use crate::run::{HostWork, RunError, RunOptions, RunResult};
 use crate::stats::{PhaseSpan, RunStats};
 use crate::topology::node_order;
 
@@ -90,6 +90,7 @@ pub struct Machine {
     fixed: Fixed,
     gp_phase: Vec<Cat>,
     kinds: BTreeMap<&'static str, Cat>,
+    host: HostWork,
 }
 
 fn clock(hz: u64, what: &str) -> Result<ClockDomain, RunError> {
@@ -151,6 +152,7 @@ impl Machine {
             categories,
             fixed,
             kinds: BTreeMap::new(),
+            host: HostWork::default(),
             cfg: cfg.clone(),
             units,
             positions,
@@ -186,6 +188,7 @@ impl Machine {
         // Instants since the monitor was last looked at (see `crate::monitor`).
         let mut unwatched = 0u64;
         loop {
+            self.host.instants += 1;
             self.step_units()?;
             if self.gps.iter().all(|g| g.state == GpState::Done) && self.quiescent() {
                 break;
@@ -343,11 +346,15 @@ impl Machine {
             return Err(RunError::NoSuchUnit { from, to });
         };
         let (src, dst) = (*src, *dst);
+        self.host.offers += 1;
         let route = Route { from, to };
         let seq = self.delivery.next_seq(route);
         match self.ring.send(self.now, src, dst, words, seq) {
             Ok(id) => Ok(Some((id, route))),
-            Err(RingError::OutputFull { .. }) => Ok(None),
+            Err(RingError::OutputFull { .. }) => {
+                self.host.refused_offers += 1;
+                Ok(None)
+            }
             Err(error) => Err(RunError::Ring { unit: from, error }),
         }
     }
@@ -555,6 +562,7 @@ impl Machine {
             stats,
             frame: self.frame,
             recorder,
+            host: self.host,
         }
     }
 }

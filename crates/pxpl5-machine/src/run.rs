@@ -69,4 +69,22 @@ pub struct RunResult {
     /// The frame buffer's image at the end of the run.
     pub frame: FrameBufferImage,
     pub recorder: Recorder,
+    /// What the simulator did on the host to get there.
+    pub host: HostWork,
+}
+
+/// Counts of the simulator's own work in a run: host figures, deterministic like the simulated
+/// ones (the same inputs give the same counts) but about the simulator, not the machine, so they
+/// stay out of `RunStats` and its JSON. Tests bound them to keep host work following the
+/// machine's work (a unit waiting for the ring must cost O(1) per instant, not a copy of its
+/// message).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct HostWork {
+    /// Instants the machine's loop stepped through.
+    pub instants: u64,
+    /// Messages offered to the ring, taken or not.
+    pub offers: u64,
+    /// Offers refused because the sender's output queue was full (each retried at a later
+    /// instant).
+    pub refused_offers: u64,
 }
