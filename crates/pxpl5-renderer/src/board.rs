@@ -220,6 +220,10 @@ pub struct Board {
     /// Backing store, allocated a block at a time on first save: block -> block_bits planes.
     backing_store: BTreeMap<u32, Vec<u64>>,
     stats: BoardStats,
+    /// Scratch reused by every command (host work only): the groups it can change, and the
+    /// QEE's streams.
+    active: Vec<u32>,
+    streams: Streams,
 }
 
 impl Board {
@@ -246,6 +250,8 @@ impl Board {
             in_flight: Vec::new(),
             backing_store: BTreeMap::new(),
             stats: BoardStats::default(),
+            active: Vec::new(),
+            streams: Streams::new(&crate::QeeExpr::default(), (0, 0), 0, 0),
         }
     }
 
@@ -315,118 +321,83 @@ impl Board {
 
     /// The pixel (or board-state) effect of a validated command that ends at cycle `end`.
     fn apply(&mut self, cmd: &Command, end: Cycles, readback: &mut Option<ReadbackStream>) {
-        // The groups a gated write can change (any enabled pixel), listed only for the commands
-        // that need them: a Logic or SetOrigin command (half a hemisphere stream) needs none.
-        let gated = |b: &Self| b.engine.get().registers().active_groups(None);
-        // The QEE's streams for this board's origin and size.
-        let (origin, g) = (self.origin, self.geometry);
-        let streams = |expr: &crate::QeeExpr| Streams::new(expr, origin, g.width, g.height);
+        // The groups the command can change, listed only for the commands that need them (a Logic
+        // or SetOrigin command, half a hemisphere stream, needs none): `None` for a gated write
+        // (any enabled pixel), else how it combines into a one-bit register.
+        let writes = match *cmd {
+            Command::QeeSign { dst, combine, .. }
+            | Command::QeeCompare { dst, combine, .. }
+            | Command::Compare { dst, combine, .. } => Some(enable_write(dst, combine)),
+            Command::QeeStore { .. }
+            | Command::QeeAdd { .. }
+            | Command::WriteConst { .. }
+            | Command::Copy { .. }
+            | Command::Add { .. }
+            | Command::Sub { .. }
+            | Command::MulConst { .. } => Some(None),
+            _ => None,
+        };
+        if let Some(w) = writes {
+            let regs = self.engine.get().registers();
+            regs.active_groups(w, &mut self.active);
+        }
+        if let Some((expr, _)) = cmd.qee() {
+            let g = self.geometry;
+            match self.engine {
+                Engine::Bit(_) => self.streams.fill(expr, self.origin, g.width, g.height),
+                Engine::Integer(_) => self.streams.fill_rows(expr, self.origin, g.height),
+            }
+        }
+        let (active, s) = (&self.active[..], &self.streams);
+        let engine = self.engine.get_mut();
         match *cmd {
             Command::SetOrigin { x, y } => self.origin = (x, y),
-            Command::Logic { dst, a, b, op } => {
-                self.engine.get_mut().registers_mut().logic(dst, a, b, op)
-            }
+            Command::Logic { dst, a, b, op } => engine.registers_mut().logic(dst, a, b, op),
             Command::QeeSign {
-                ref expr,
                 window,
                 dst,
                 combine,
-            } => {
-                let active = self
-                    .engine
-                    .get()
-                    .registers()
-                    .active_groups(enable_write(dst, combine));
-                let s = streams(expr);
-                self.engine
-                    .get_mut()
-                    .qee(&s, window, QeeSink::Sign { dst, combine }, &active);
-            }
-            Command::QeeStore {
-                ref expr,
-                window,
-                dst,
-            } => {
-                let s = streams(expr);
-                let gated = gated(self);
-                self.engine
-                    .get_mut()
-                    .qee(&s, window, QeeSink::Store { dst }, &gated);
+                ..
+            } => engine.qee(s, window, QeeSink::Sign { dst, combine }, active),
+            Command::QeeStore { window, dst, .. } => {
+                engine.qee(s, window, QeeSink::Store { dst }, active)
             }
             Command::QeeCompare {
-                ref expr,
                 window,
                 field,
                 cmp,
                 dst,
                 combine,
+                ..
             } => {
-                let active = self
-                    .engine
-                    .get()
-                    .registers()
-                    .active_groups(enable_write(dst, combine));
-                let s = streams(expr);
                 let sink = QeeSink::Compare {
                     field,
                     cmp,
                     dst,
                     combine,
                 };
-                self.engine.get_mut().qee(&s, window, sink, &active);
+                engine.qee(s, window, sink, active);
             }
-            Command::QeeAdd {
-                ref expr,
-                window,
-                dst,
-            } => {
-                let s = streams(expr);
-                let gated = gated(self);
-                self.engine
-                    .get_mut()
-                    .qee(&s, window, QeeSink::Add { dst }, &gated);
+            Command::QeeAdd { window, dst, .. } => {
+                engine.qee(s, window, QeeSink::Add { dst }, active)
             }
-            Command::WriteConst { dst, value } => {
-                let gated = gated(self);
-                self.engine.get_mut().write_const(dst, value, &gated)
-            }
-            Command::Copy { dst, src } => {
-                let gated = gated(self);
-                self.engine.get_mut().copy(dst, src, &gated)
-            }
-            Command::Add { dst, a, b } => {
-                let gated = gated(self);
-                self.engine.get_mut().add_sub(dst, a, b, false, &gated)
-            }
-            Command::Sub { dst, a, b } => {
-                let gated = gated(self);
-                self.engine.get_mut().add_sub(dst, a, b, true, &gated)
-            }
+            Command::WriteConst { dst, value } => engine.write_const(dst, value, active),
+            Command::Copy { dst, src } => engine.copy(dst, src, active),
+            Command::Add { dst, a, b } => engine.add_sub(dst, a, b, false, active),
+            Command::Sub { dst, a, b } => engine.add_sub(dst, a, b, true, active),
             Command::Compare {
                 a,
                 b,
                 cmp,
                 dst,
                 combine,
-            } => {
-                let active = self
-                    .engine
-                    .get()
-                    .registers()
-                    .active_groups(enable_write(dst, combine));
-                self.engine
-                    .get_mut()
-                    .compare(a, b, cmp, dst, combine, &active);
-            }
+            } => engine.compare(a, b, cmp, dst, combine, active),
             Command::MulConst {
                 dst,
                 src,
                 k,
                 k_bits,
-            } => {
-                let gated = gated(self);
-                self.engine.get_mut().mul_const(dst, src, k, k_bits, &gated)
-            }
+            } => engine.mul_const(dst, src, k, k_bits, active),
             Command::Save { field, block } => {
                 // The data are copied at issue: the interlock keeps every later access to the
                 // field behind the transfer's end, so no command can see the difference.

@@ -72,21 +72,10 @@ impl LogicOp {
     /// The function applied to 64 pixels at once.
     #[inline]
     pub fn apply(self, a: u64, b: u64) -> u64 {
-        let t = self.0;
-        let mut r = 0;
-        if t & 1 != 0 {
-            r |= !a & !b;
-        }
-        if t & 2 != 0 {
-            r |= !a & b;
-        }
-        if t & 4 != 0 {
-            r |= a & !b;
-        }
-        if t & 8 != 0 {
-            r |= a & b;
-        }
-        r
+        // Each truth-table bit as an all-ones or all-zeros mask: no branch, so a loop over groups
+        // with a fixed op runs straight through.
+        let t = |k: u8| 0u64.wrapping_sub(u64::from((self.0 >> k) & 1));
+        (t(0) & !a & !b) | (t(1) & !a & b) | (t(2) & a & !b) | (t(3) & a & b)
     }
 
     /// Whether the result is 0 whenever a is 0: a combine op with this property leaves a pixel

@@ -216,32 +216,71 @@ pub struct Streams {
     pub origin_x: i64,
     /// Whether the cross stage is in use (E != 0).
     pub cross: bool,
+    /// A and D, the x-tree's coefficients: along row py, V = D x^2 + (A + E y) x + Y(y), which
+    /// the `integer` level solves per row instead of reading `col`.
+    pub a: i64,
+    pub d: i64,
 }
 
 impl Streams {
     /// The streams of `expr` on a `width` x `height` array whose pixel (0, 0) has address
     /// `origin`.
     pub fn new(expr: &QeeExpr, origin: (u32, u32), width: usize, height: usize) -> Streams {
+        let mut s = Streams {
+            col: Vec::with_capacity(width),
+            row: Vec::with_capacity(height),
+            e_row: Vec::with_capacity(height),
+            origin_x: 0,
+            cross: false,
+            a: 0,
+            d: 0,
+        };
+        s.fill(expr, origin, width, height);
+        s
+    }
+
+    /// Overwrite these streams with those of `expr` (as [`Streams::new`]), reusing the vectors:
+    /// a board keeps one `Streams` and refills it for every QEE command.
+    pub fn fill(&mut self, expr: &QeeExpr, origin: (u32, u32), width: usize, height: usize) {
+        self.fill_rows(expr, origin, height);
+        let ox = self.origin_x;
+        self.col.clear();
+        self.col.extend((0..width as i64).map(|px| {
+            let x = ox + px;
+            expr.a * x + expr.d * x * x
+        }));
+    }
+
+    /// Only what [`Streams::row_fn`] reads (`row`, `e_row` and the coefficients), with `col`
+    /// left empty: the `integer` level evaluates rows as quadratics and never reads the columns'
+    /// stream, so it does not pay for it.
+    pub fn fill_rows(&mut self, expr: &QeeExpr, origin: (u32, u32), height: usize) {
         let (ox, oy) = (origin.0 as i64, origin.1 as i64);
-        let col = (0..width as i64)
-            .map(|px| {
-                let x = ox + px;
-                expr.a * x + expr.d * x * x
-            })
-            .collect();
-        let row = (0..height as i64)
-            .map(|py| {
-                let y = oy + py;
-                expr.c + expr.b * y + expr.f * y * y
-            })
-            .collect();
-        let e_row = (0..height as i64).map(|py| expr.e * (oy + py)).collect();
-        Streams {
-            col,
-            row,
-            e_row,
-            origin_x: ox,
-            cross: expr.e != 0,
+        self.col.clear();
+        self.row.clear();
+        self.row.extend((0..height as i64).map(|py| {
+            let y = oy + py;
+            expr.c + expr.b * y + expr.f * y * y
+        }));
+        self.e_row.clear();
+        self.e_row
+            .extend((0..height as i64).map(|py| expr.e * (oy + py)));
+        self.origin_x = ox;
+        self.cross = expr.e != 0;
+        self.a = expr.a;
+        self.d = expr.d;
+    }
+
+    /// V along row `py` as a function of the column: `D x^2 + (A + E y) x + Y(y)` with
+    /// x = origin_x + px, evaluated as `(D x + b) x + Y(y)`. Equal to [`Streams::value`]: the
+    /// config's bound on coefficient and coordinate bits keeps every partial sum inside i64.
+    #[inline]
+    pub fn row_fn(&self, py: usize) -> RowFn {
+        RowFn {
+            d: self.d,
+            b: self.a + self.e_row[py],
+            r: self.row[py],
+            x0: self.origin_x,
         }
     }
 
@@ -255,6 +294,23 @@ impl Streams {
     #[inline]
     pub fn value(&self, px: usize, py: usize) -> i64 {
         self.col[px] + self.row[py] + self.cross_at(px, py)
+    }
+}
+
+/// V along one row: `(d x + b) x + r` at x = x0 + px (see [`Streams::row_fn`]).
+#[derive(Clone, Copy, Debug)]
+pub struct RowFn {
+    pub d: i64,
+    pub b: i64,
+    pub r: i64,
+    pub x0: i64,
+}
+
+impl RowFn {
+    #[inline]
+    pub fn at(self, px: usize) -> i64 {
+        let x = self.x0 + px as i64;
+        (self.d * x + self.b) * x + self.r
     }
 }
 
@@ -316,6 +372,11 @@ mod tests {
                 s.value(px, py),
                 e.eval(100 + px as i64, 37 + py as i64),
                 "at ({px}, {py})"
+            );
+            assert_eq!(
+                s.row_fn(py).at(px),
+                s.value(px, py),
+                "row form at ({px}, {py})"
             );
         }
         assert!(s.cross);

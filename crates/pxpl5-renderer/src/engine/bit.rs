@@ -8,7 +8,7 @@
 //! micro-cycles before the next group (the groups are independent, so the order of the loops
 //! changes nothing but the host's cache use).
 
-use super::{Geometry, PixelEngine, QeeSink, Registers, transpose64};
+use super::{Geometry, PixelEngine, QeeSink, Registers, gated, transpose64};
 use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
 use crate::qee::{Streams, Window};
 
@@ -52,7 +52,7 @@ impl BitEngine {
     #[inline(always)]
     fn write(&mut self, f: Field, k: u32, g: usize, v: u64, en: u64) {
         let p = &mut self.planes[(f.offset + k) as usize * self.geometry.groups + g];
-        *p = (*p & !en) | (v & en);
+        *p = gated(*p, en, v);
     }
 
     /// The 64 planes of the x-tree stream for each group position `cg` along a row.

@@ -5,15 +5,17 @@
 //! bits 64k .. 64k + 63 of every pixel (structure of arrays, so a field's loop walks one or two
 //! contiguous vectors).
 
-use super::{Geometry, PixelEngine, QeeSink, Registers, extend, value_of};
+use super::{Geometry, PixelEngine, QeeSink, Registers, extend, gated, value_of};
 use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
-use crate::qee::{Streams, Window, mask};
+use crate::qee::{RowFn, Streams, Window, mask};
 
 /// Per-pixel integer pixel memory and the shared one-bit registers.
 pub struct IntegerEngine {
     geometry: Geometry,
     limbs: Vec<Vec<u64>>,
     regs: Registers,
+    /// Scratch: one row's sign bits (host work only).
+    row_bits: Vec<u64>,
 }
 
 /// Where a field's bits sit in the limbs.
@@ -48,6 +50,7 @@ impl IntegerEngine {
             geometry,
             limbs: vec![vec![0; geometry.groups * 64]; limbs],
             regs: Registers::new(geometry, flag_count),
+            row_bits: vec![0; geometry.groups_per_row],
         }
     }
 
@@ -109,31 +112,14 @@ impl IntegerEngine {
             self.regs.combine(dst, g, result, combine);
         }
     }
-
-    /// The window of the QEE's value at the 64 pixels of group `g`: V = X(x) + Y(y) + (E y) x.
-    #[inline]
-    fn window_values(&self, s: &Streams, window: Window, g: usize, out: &mut [u64; 64]) {
-        let (py, px0) = self.geometry.group_origin(g);
-        let col = &s.col[px0..px0 + 64];
-        let row = s.row[py];
-        let (shift, m) = (window.shift, mask(window.bits));
-        if s.cross {
-            let (ey, x0) = (s.e_row[py], s.origin_x + px0 as i64);
-            for (i, (o, &c)) in out.iter_mut().zip(col).enumerate() {
-                *o = (((c + row + ey * (x0 + i as i64)) >> shift) as u64) & m;
-            }
-        } else {
-            for (o, &c) in out.iter_mut().zip(col) {
-                *o = (((c + row) >> shift) as u64) & m;
-            }
-        }
-    }
 }
 
 /// Sign tests solved per row span: along a row, V is a quadratic in x, so it is monotone on at most
 /// two pieces, and on a monotone piece whose window cannot wrap the pixels with W >= 0 form one
-/// prefix or suffix, found by binary search on exact values. A piece whose window might wrap falls
-/// back to evaluating every pixel. Exact: the property tests compare it with the bit level.
+/// prefix or suffix. Its end is estimated from the real roots of the row's quadratic and then
+/// found exactly by a galloping search on exact integer values (two evaluations when the estimate
+/// is right). A piece whose window might wrap falls back to evaluating every pixel. Exact: the
+/// property tests compare it with the bit level.
 impl IntegerEngine {
     fn sign_test(
         &mut self,
@@ -144,26 +130,55 @@ impl IntegerEngine {
         active: &[u32],
     ) {
         let gpr = self.geometry.groups_per_row;
-        let mut row_bits = vec![0u64; gpr];
-        let mut i = 0;
-        while i < active.len() {
-            let py = active[i] as usize / gpr;
-            sign_row(s, window, py, self.geometry.width, &mut row_bits);
-            while i < active.len() && active[i] as usize / gpr == py {
-                let g = active[i] as usize;
-                self.regs.combine(dst, g, row_bits[g % gpr], combine);
-                i += 1;
+        let range = Unwrapped::of(window);
+        let row_bits = &mut self.row_bits;
+        // The destination plane, chosen once: a flag's writes are gated by enable.
+        let Registers { enable, flags } = &mut self.regs;
+        let mut flag = match dst {
+            Bit::Flag(i) => Some(&mut flags[i as usize]),
+            Bit::Enable => None,
+        };
+        let mut row = usize::MAX;
+        for &g in active {
+            let g = g as usize;
+            let py = g / gpr;
+            if py != row {
+                row = py;
+                sign_row(s.row_fn(py), window, range, self.geometry.width, row_bits);
+            }
+            let v = row_bits[g - py * gpr];
+            match &mut flag {
+                Some(f) => f[g] = gated(f[g], enable[g], combine.apply(f[g], v)),
+                None => enable[g] = combine.apply(enable[g], v),
             }
         }
     }
 }
 
-/// Whether floor(v / 2^shift) fits the window's bits as a signed number (no wrap).
-#[inline]
-fn fits(v: i64, window: Window) -> bool {
-    let q = i128::from(v >> window.shift);
-    let half = 1i128 << (window.bits - 1);
-    -half <= q && q < half
+/// The values of V whose window does not wrap: floor(V / 2^shift) fits `bits` bits as a signed
+/// number exactly when `min <= V <= max`. Computed once per command.
+#[derive(Clone, Copy)]
+struct Unwrapped {
+    min: i64,
+    max: i64,
+}
+
+impl Unwrapped {
+    fn of(window: Window) -> Unwrapped {
+        // -2^(bits-1) * 2^shift ..= 2^(bits-1) * 2^shift - 1, clamped to i64 (shift + bits <= 64
+        // by validation, so the clamp only ever removes nothing).
+        let e = window.bits - 1 + window.shift;
+        let half = 1i128 << e.min(100);
+        Unwrapped {
+            min: (-half).max(i128::from(i64::MIN)) as i64,
+            max: (half - 1).min(i128::from(i64::MAX)) as i64,
+        }
+    }
+
+    #[inline]
+    fn holds(self, v: i64) -> bool {
+        self.min <= v && v <= self.max
+    }
 }
 
 /// Set bits `lo ..= hi` of a row (one u64 per group), a group at a time.
@@ -175,36 +190,110 @@ fn set_span(out: &mut [u64], lo: usize, hi: usize) {
     }
 }
 
-/// The W >= 0 bits of row `py` into `out` (one u64 per 64 columns).
-fn sign_row(s: &Streams, window: Window, py: usize, width: usize, out: &mut [u64]) {
-    out.fill(0);
-    let f = |px: usize| s.value(px, py);
-    // f(px + 1) - f(px): linear in px (its slope is 2D), so monotone.
-    let g = |px: usize| s.col[px + 1] - s.col[px] + s.e_row[py];
-    let last = width - 1;
-    // Split where the forward difference changes sign: f is monotone on [0, k] and on [k, last].
-    let k = if last == 0 || (g(0) >= 0) == (g(last - 1) >= 0) {
-        last
-    } else {
-        let rising = g(0) < 0; // g goes from negative to non-negative
-        let (mut lo, mut hi) = (0usize, last - 1);
-        // First px in [0, last - 1] where g's sign class flips.
-        while lo < hi {
-            let mid = (lo + hi) / 2;
-            if (g(mid) >= 0) == rising {
-                hi = mid;
+/// The first px in `lo ..= hi` where `pred` holds, `hi + 1` if none, for a `pred` that is false
+/// and then true on the range. Gallops from `guess` (any estimate; clamped), so a good guess
+/// costs two evaluations and a bad one a binary search's worth.
+fn first_true(lo: usize, hi: usize, guess: f64, pred: impl Fn(usize) -> bool) -> usize {
+    // NaN clamps to lo (`as` saturates); the clamp keeps the guess inside the range.
+    let g = (guess.max(lo as f64).min(hi as f64) as usize).clamp(lo, hi);
+    // First true in (f, t], knowing pred(t).
+    let bisect = |mut f: usize, mut t: usize| {
+        while t - f > 1 {
+            let m = f + (t - f) / 2;
+            if pred(m) { t = m } else { f = m }
+        }
+        t
+    };
+    let mut step = 1;
+    if pred(g) {
+        let mut t = g;
+        loop {
+            if t == lo {
+                return lo;
+            }
+            let probe = t.saturating_sub(step).max(lo);
+            if pred(probe) {
+                t = probe;
+                step *= 2;
             } else {
-                lo = mid + 1;
+                return bisect(probe, t);
             }
         }
-        lo
+    } else {
+        let mut f = g;
+        loop {
+            if f == hi {
+                return hi + 1;
+            }
+            let probe = (f + step).min(hi);
+            if pred(probe) {
+                return bisect(f, probe);
+            }
+            f = probe;
+            step *= 2;
+        }
+    }
+}
+
+/// The real roots of the row's quadratic (or its linear root), in px, as estimates: at most two,
+/// NaN where there is none.
+fn root_estimates(v: RowFn) -> [f64; 2] {
+    let (d, b, r) = (v.d as f64, v.b as f64, v.r as f64);
+    let x0 = v.x0 as f64;
+    if v.d == 0 {
+        return [-r / b - x0, f64::NAN];
+    }
+    let disc = b * b - 4.0 * d * r;
+    if disc < 0.0 {
+        return [f64::NAN, f64::NAN];
+    }
+    let q = disc.sqrt();
+    [(-b - q) / (2.0 * d) - x0, (-b + q) / (2.0 * d) - x0]
+}
+
+/// The estimate of the crossing inside `lo ..= hi`: the root nearest the range.
+fn guess_in(roots: [f64; 2], lo: usize, hi: usize) -> f64 {
+    let dist = |x: f64| {
+        if x.is_nan() {
+            f64::INFINITY
+        } else {
+            (lo as f64 - x).max(x - hi as f64).max(0.0)
+        }
     };
+    if dist(roots[0]) <= dist(roots[1]) {
+        roots[0]
+    } else {
+        roots[1]
+    }
+}
+
+/// The W >= 0 bits of one row into `out` (one u64 per 64 columns).
+fn sign_row(v: RowFn, window: Window, range: Unwrapped, width: usize, out: &mut [u64]) {
+    out.fill(0);
+    let last = width - 1;
+    if v.d == 0 {
+        return linear_sign_row(v, window, range, last, out);
+    }
+    // f(px + 1) - f(px) = D (2x + 1) + b: linear in px, so f is monotone on [0, k] and [k, last]
+    // where k is the first px at which the difference changes sign class.
+    let diff = |px: usize| {
+        let x = v.x0 + px as i64;
+        v.d * (2 * x + 1) + v.b
+    };
+    let k = if last == 0 || v.d == 0 || (diff(0) >= 0) == (diff(last - 1) >= 0) {
+        last
+    } else {
+        let rising = diff(0) < 0;
+        let vertex = -(v.b as f64) / (2.0 * v.d as f64) - 0.5 - v.x0 as f64;
+        first_true(0, last - 1, vertex, |px| (diff(px) >= 0) == rising)
+    };
+    let roots = root_estimates(v);
     let mut piece = |lo: usize, hi: usize| {
-        let (a, b) = (f(lo), f(hi));
-        if !(fits(a, window) && fits(b, window)) {
+        let (a, b) = (v.at(lo), v.at(hi));
+        if !(range.holds(a) && range.holds(b)) {
             let top = window.bits - 1;
             for px in lo..=hi {
-                if (window.cut(f(px)) >> top) & 1 == 0 {
+                if (window.cut(v.at(px)) >> top) & 1 == 0 {
                     out[px / 64] |= 1 << (px % 64);
                 }
             }
@@ -213,29 +302,66 @@ fn sign_row(s: &Streams, window: Window, py: usize, width: usize, out: &mut [u64
         match (a >= 0, b >= 0) {
             (true, true) => set_span(out, lo, hi),
             (false, false) => {}
+            // Non-decreasing: from the first px with f >= 0.
             (false, true) => {
-                // Non-decreasing: the first px with f >= 0.
-                let (mut l, mut h) = (lo, hi);
-                while l < h {
-                    let m = (l + h) / 2;
-                    if f(m) >= 0 { h = m } else { l = m + 1 }
-                }
-                set_span(out, l, hi);
+                let first = first_true(lo, hi, guess_in(roots, lo, hi), |px| v.at(px) >= 0);
+                set_span(out, first, hi);
             }
+            // Non-increasing: up to the last px with f >= 0.
             (true, false) => {
-                // Non-increasing: the last px with f >= 0.
-                let (mut l, mut h) = (lo, hi);
-                while l < h {
-                    let m = (l + h).div_ceil(2);
-                    if f(m) >= 0 { l = m } else { h = m - 1 }
-                }
-                set_span(out, lo, l);
+                let first_neg = first_true(lo, hi, guess_in(roots, lo, hi), |px| v.at(px) < 0);
+                set_span(out, lo, first_neg - 1);
             }
         }
     };
     piece(0, k);
     if k < last {
         piece(k, last);
+    }
+}
+
+/// [`sign_row`] for a row along which V is linear, `f(px) = f(0) + b px`: the end of the span by
+/// one exact integer division.
+fn linear_sign_row(v: RowFn, window: Window, range: Unwrapped, last: usize, out: &mut [u64]) {
+    let (f0, fl) = (v.at(0), v.at(last));
+    if !(range.holds(f0) && range.holds(fl)) {
+        // The window may wrap somewhere along the row: pixel by pixel.
+        let top = window.bits - 1;
+        for px in 0..=last {
+            if (window.cut(v.at(px)) >> top) & 1 == 0 {
+                out[px / 64] |= 1 << (px % 64);
+            }
+        }
+        return;
+    }
+    match (f0 >= 0, fl >= 0) {
+        (true, true) => set_span(out, 0, last),
+        (false, false) => {}
+        // Rising (b > 0, f0 < 0): f(px) >= 0 from px = ceil(-f0 / b). Both operands are
+        // positive and inside the unwrapped range, so nothing overflows.
+        (false, true) => set_span(out, ((-f0 + v.b - 1) / v.b) as usize, last),
+        // Falling (b < 0, f0 >= 0): f(px) >= 0 up to px = floor(f0 / -b).
+        (true, false) => set_span(out, 0, (f0 / -v.b) as usize),
+    }
+}
+
+/// Call `f` with the index of every set bit of `m`, lowest first.
+#[inline]
+fn for_each_bit(mut m: u64, mut f: impl FnMut(u32)) {
+    while m != 0 {
+        f(m.trailing_zeros());
+        m &= m - 1;
+    }
+}
+
+/// The pixels of a group whose result bit can matter when it is combined into `dst` with
+/// `combine`: the enabled ones for a flag (its writes are gated) or for enable combined by an op
+/// that keeps 0 at 0; all of them otherwise. Result bits elsewhere are left 0.
+#[inline]
+fn needed(dst: Bit, combine: LogicOp, en: u64) -> u64 {
+    match dst {
+        Bit::Enable if !combine.keeps_zero() => u64::MAX,
+        _ => en,
     }
 }
 
@@ -252,21 +378,28 @@ impl PixelEngine for IntegerEngine {
         if let QeeSink::Sign { dst, combine } = sink {
             return self.sign_test(s, window, dst, combine, active);
         }
-        let mut cut = [0u64; 64];
+        let gpr = self.geometry.groups_per_row;
         for &g in active {
             let g = g as usize;
-            self.window_values(s, window, g, &mut cut);
+            let (py, px0) = (g / gpr, (g % gpr) * 64);
+            let v = s.row_fn(py);
+            let cut = |i: u32| window.cut(v.at(px0 + i as usize));
             let base = g * 64;
             let en = self.regs.enable[g];
             match sink {
                 QeeSink::Sign { .. } => unreachable!("sign tests take the span path"),
+                // Gated writes: only enabled pixels change, so only they are evaluated.
                 QeeSink::Store { dst } => {
                     let a = Access::of(dst);
-                    for (i, &c) in cut.iter().enumerate() {
-                        if (en >> i) & 1 != 0 {
-                            self.set(a, base + i, c);
-                        }
-                    }
+                    for_each_bit(en, |i| self.set(a, base + i as usize, cut(i)));
+                }
+                QeeSink::Add { dst } => {
+                    let a = Access::of(dst);
+                    for_each_bit(en, |i| {
+                        let p = base + i as usize;
+                        let v = self.get(a, p).wrapping_add(cut(i));
+                        self.set(a, p, v);
+                    });
                 }
                 QeeSink::Compare {
                     field,
@@ -276,21 +409,13 @@ impl PixelEngine for IntegerEngine {
                 } => {
                     let a = Access::of(field);
                     let mut result = 0u64;
-                    for (i, &c) in cut.iter().enumerate() {
-                        let lhs = value_of(c, field.bits, field.signed);
-                        let rhs = value_of(self.get(a, base + i), field.bits, field.signed);
+                    for_each_bit(needed(dst, combine, en), |i| {
+                        let lhs = value_of(cut(i), field.bits, field.signed);
+                        let rhs =
+                            value_of(self.get(a, base + i as usize), field.bits, field.signed);
                         result |= (cmp.holds(lhs, rhs) as u64) << i;
-                    }
+                    });
                     self.regs.combine(dst, g, result, combine);
-                }
-                QeeSink::Add { dst } => {
-                    let a = Access::of(dst);
-                    for (i, &c) in cut.iter().enumerate() {
-                        if (en >> i) & 1 != 0 {
-                            let v = self.get(a, base + i).wrapping_add(c);
-                            self.set(a, base + i, v);
-                        }
-                    }
                 }
             }
         }

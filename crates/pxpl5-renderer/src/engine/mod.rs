@@ -85,32 +85,76 @@ impl Registers {
         match dst {
             Bit::Enable => self.enable[g] = combine.apply(self.enable[g], value),
             Bit::Flag(i) => {
-                let en = self.enable[g];
                 let old = self.flags[i as usize][g];
-                self.flags[i as usize][g] = (old & !en) | (combine.apply(old, value) & en);
+                self.flags[i as usize][g] = gated(old, self.enable[g], combine.apply(old, value));
             }
         }
     }
 
     /// `dst := op(a, b)`: one ALU step on every pixel.
     pub fn logic(&mut self, dst: Bit, a: Bit, b: Bit, op: LogicOp) {
-        for g in 0..self.enable.len() {
-            let v = op.apply(self.get(a, g), self.get(b, g));
-            self.combine(dst, g, v, LogicOp::B);
+        // In chunks through a buffer on the stack, so `dst` may be `a` or `b` and the inner loops
+        // run over plain slices.
+        const CHUNK: usize = 64;
+        let mut buf = [0u64; CHUNK];
+        let n = self.enable.len();
+        for start in (0..n).step_by(CHUNK) {
+            let end = (start + CHUNK).min(n);
+            let values = &mut buf[..end - start];
+            let (pa, pb) = (&self.plane(a)[start..end], &self.plane(b)[start..end]);
+            for ((v, &x), &y) in values.iter_mut().zip(pa).zip(pb) {
+                *v = op.apply(x, y);
+            }
+            self.combine_run(dst, start, values, LogicOp::B);
+        }
+    }
+
+    /// The bit-plane of a one-bit register.
+    #[inline]
+    pub fn plane(&self, b: Bit) -> &[u64] {
+        match b {
+            Bit::Enable => &self.enable,
+            Bit::Flag(i) => &self.flags[i as usize],
+        }
+    }
+
+    /// [`Registers::combine`] for the consecutive groups `start .. start + values.len()`.
+    pub fn combine_run(&mut self, dst: Bit, start: usize, values: &[u64], combine: LogicOp) {
+        let end = start + values.len();
+        match dst {
+            Bit::Enable => {
+                for (e, &v) in self.enable[start..end].iter_mut().zip(values) {
+                    *e = combine.apply(*e, v);
+                }
+            }
+            Bit::Flag(i) => {
+                let flag = &mut self.flags[i as usize][start..end];
+                for ((f, &v), &en) in flag.iter_mut().zip(values).zip(&self.enable[start..end]) {
+                    *f = gated(*f, en, combine.apply(*f, v));
+                }
+            }
         }
     }
 
     /// The groups a command can change: where some pixel is enabled, when its writes are gated
     /// (memory and flags) or when it combines into enable with an op that keeps 0 at 0; every group
     /// otherwise.
-    pub fn active_groups(&self, enable_write: Option<LogicOp>) -> Vec<u32> {
+    /// They go into a buffer the caller reuses (a board keeps one, so a command allocates nothing).
+    pub fn active_groups(&self, enable_write: Option<LogicOp>, out: &mut Vec<u32>) {
+        out.clear();
         match enable_write {
-            Some(op) if !op.keeps_zero() => (0..self.enable.len() as u32).collect(),
-            _ => (0..self.enable.len() as u32)
-                .filter(|&g| self.enable[g as usize] != 0)
-                .collect(),
+            Some(op) if !op.keeps_zero() => out.extend(0..self.enable.len() as u32),
+            _ => {
+                out.extend((0..self.enable.len() as u32).filter(|&g| self.enable[g as usize] != 0))
+            }
         }
     }
+}
+
+/// A gated write of 64 pixels: `new` where enabled, `old` elsewhere.
+#[inline]
+pub fn gated(old: u64, enable: u64, new: u64) -> u64 {
+    (old & !enable) | (new & enable)
 }
 
 /// Where a QEE result goes.
