@@ -21,11 +21,10 @@
 //! stops with `RunError::Stopped` if the host asked it to stop now (`crate::monitor`).
 
 use std::cell::RefCell;
-use std::collections::BTreeMap;
 use std::rc::Rc;
 
 use pxpl5_config::MachineConfig;
-use pxpl5_ring::{MessageId, NodeId, Ring, RingError};
+use pxpl5_ring::{MessageId, Ring, RingError};
 use pxpl5_sim::{ClockDomain, ComponentId, EventQueue, Priority, Tick};
 
 use crate::critical::{Cat, Categories, Fixed, PathPart, Profile, Resource};
@@ -38,7 +37,7 @@ use crate::record::Recorder;
 use crate::renderer_node::{RendererNode, Started};
 use crate::run::{HostWork, RunError, RunOptions, RunResult};
 use crate::stats::{PhaseSpan, RunStats};
-use crate::topology::node_order;
+use crate::topology::{Positions, node_order};
 
 /// Events of the machine's queue.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -73,7 +72,7 @@ impl Event {
 pub struct Machine {
     cfg: MachineConfig,
     units: Vec<Unit>,
-    positions: BTreeMap<Unit, NodeId>,
+    positions: Positions,
     ring: Ring,
     gps: Vec<GpNode>,
     renderers: Vec<RendererNode>,
@@ -89,7 +88,8 @@ pub struct Machine {
     categories: Categories,
     fixed: Fixed,
     gp_phase: Vec<Cat>,
-    kinds: BTreeMap<&'static str, Cat>,
+    /// Each Renderer command kind's category, by `Command::kind_index`, made on first use.
+    kinds: Vec<Option<Cat>>,
     host: HostWork,
 }
 
@@ -106,11 +106,7 @@ impl Machine {
         recorder: Recorder,
     ) -> Result<Machine, RunError> {
         let units = node_order(cfg);
-        let positions = units
-            .iter()
-            .enumerate()
-            .map(|(i, u)| (*u, NodeId(i as u32)))
-            .collect();
+        let positions = Positions::new(&units);
         let ring = Ring::new(&cfg.ring, units.len() as u32)
             .map_err(|e| RunError::Config(e.to_string()))?;
         let gp_clock = clock(cfg.gp.clock_hz, "gp.clock_hz")?;
@@ -151,7 +147,7 @@ impl Machine {
             gp_phase: vec![computing; cfg.gp.count as usize],
             categories,
             fixed,
-            kinds: BTreeMap::new(),
+            kinds: vec![None; pxpl5_renderer::Command::KINDS.len()],
             host: HostWork::default(),
             cfg: cfg.clone(),
             units,
@@ -342,10 +338,9 @@ impl Machine {
         to: Unit,
         words: u32,
     ) -> Result<Option<(MessageId, Route)>, RunError> {
-        let (Some(src), Some(dst)) = (self.positions.get(&from), self.positions.get(&to)) else {
+        let (Some(src), Some(dst)) = (self.positions.get(from), self.positions.get(to)) else {
             return Err(RunError::NoSuchUnit { from, to });
         };
-        let (src, dst) = (*src, *dst);
         self.host.offers += 1;
         let route = Route { from, to };
         let seq = self.delivery.next_seq(route);
@@ -464,12 +459,12 @@ impl Machine {
     /// board's previous command and the command's message, through any wait (readback words the
     /// ring had no room for, or a stall), to the command's end.
     fn renderer_path(&mut self, r: u32, started: &Started) {
-        let kind = match self.kinds.get(started.kind) {
-            Some(&c) => c,
+        let kind = match self.kinds[started.kind_index] {
+            Some(c) => c,
             None => {
                 let name = format!("Renderer {}", started.kind);
                 let c = self.categories.get(&name, Resource::Renderer);
-                self.kinds.insert(started.kind, c);
+                self.kinds[started.kind_index] = Some(c);
                 c
             }
         };

@@ -48,6 +48,8 @@ struct Running {
 /// A command that started: what the machine records and when it completes.
 pub(crate) struct Started {
     pub kind: &'static str,
+    /// [`pxpl5_renderer::Command::kind_index`] of the command.
+    pub kind_index: usize,
     pub start: Tick,
     pub end: Tick,
     /// Its message's arrival, for a message's first command.
@@ -194,6 +196,7 @@ impl RendererNode {
         });
         Ok(Some(Started {
             kind: q.command.kind(),
+            kind_index: q.command.kind_index(),
             start,
             end,
             first_in_message: q.arrival.is_some(),
@@ -223,7 +226,7 @@ impl RendererNode {
             busy: self.clock.cycles_floor(self.busy),
             idle: self.clock.cycles_floor(end - self.busy),
             commands: self.commands,
-            board: self.board.stats().clone(),
+            board: self.board.stats(),
         }
     }
 

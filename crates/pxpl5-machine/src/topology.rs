@@ -6,6 +6,7 @@
 //! the one mapping between the two.
 
 use pxpl5_config::{MachineConfig, NodeOrder};
+use pxpl5_ring::NodeId;
 
 use crate::gp::Unit;
 
@@ -40,6 +41,51 @@ pub fn node_order(cfg: &MachineConfig) -> Vec<Unit> {
         units.push(Unit::Host);
     }
     units
+}
+
+/// Each unit's ring node, found without a search (the machine looks one up for every offer to
+/// the ring, and a waiting sender offers again at every instant).
+#[derive(Clone, Debug, Default)]
+pub struct Positions {
+    gps: Vec<Option<NodeId>>,
+    renderers: Vec<Option<NodeId>>,
+    frame_buffer: Option<NodeId>,
+    host: Option<NodeId>,
+}
+
+impl Positions {
+    /// The positions of `units`, in ring order ([`node_order`]).
+    pub fn new(units: &[Unit]) -> Positions {
+        let mut p = Positions::default();
+        let slot = |v: &mut Vec<Option<NodeId>>, i: u32, node| {
+            let i = i as usize;
+            if v.len() <= i {
+                v.resize(i + 1, None);
+            }
+            v[i] = Some(node);
+        };
+        for (i, &u) in units.iter().enumerate() {
+            let node = NodeId(i as u32);
+            match u {
+                Unit::Gp(g) => slot(&mut p.gps, g, node),
+                Unit::Renderer(r) => slot(&mut p.renderers, r, node),
+                Unit::FrameBuffer => p.frame_buffer = Some(node),
+                Unit::Host => p.host = Some(node),
+            }
+        }
+        p
+    }
+
+    /// The ring node of `unit`, if the machine has it.
+    #[inline]
+    pub fn get(&self, unit: Unit) -> Option<NodeId> {
+        match unit {
+            Unit::Gp(g) => self.gps.get(g as usize).copied().flatten(),
+            Unit::Renderer(r) => self.renderers.get(r as usize).copied().flatten(),
+            Unit::FrameBuffer => self.frame_buffer,
+            Unit::Host => self.host,
+        }
+    }
 }
 
 impl Unit {

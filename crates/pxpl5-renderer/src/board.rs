@@ -224,6 +224,8 @@ pub struct Board {
     /// QEE's streams.
     active: Vec<u32>,
     streams: Streams,
+    /// Per command kind, by [`Command::kind_index`] (`stats` puts them into `by_kind`).
+    kinds: [KindStats; Command::KINDS.len()],
 }
 
 impl Board {
@@ -251,6 +253,7 @@ impl Board {
             backing_store: BTreeMap::new(),
             stats: BoardStats::default(),
             active: Vec::new(),
+            kinds: Default::default(),
             streams: Streams::new(&crate::QeeExpr::default(), (0, 0), 0, 0),
         }
     }
@@ -275,14 +278,20 @@ impl Board {
         self.free_at = self.free_at.max(t);
     }
 
-    pub fn stats(&self) -> &BoardStats {
-        &self.stats
+    /// The board's statistics so far.
+    pub fn stats(&self) -> BoardStats {
+        let mut stats = self.stats.clone();
+        for (name, k) in Command::KINDS.iter().zip(&self.kinds) {
+            if k.count > 0 {
+                stats.by_kind.insert(name, k.clone());
+            }
+        }
+        stats
     }
 
     /// Execute one command: validate it, wait for interlocks, do the pixel work, advance time.
     pub fn execute(&mut self, cmd: &Command) -> Result<Executed, CommandError> {
         self.validate(cmd)?;
-        let kind = cmd.kind();
         let cost = cycle_cost(cmd, &self.cfg);
 
         // Backing-store interlock: wait for transfers touching this command's fields (a fence
@@ -308,7 +317,7 @@ impl Board {
         self.stats.commands += 1;
         self.stats.busy += cost;
         self.stats.stall += stall;
-        let k = self.stats.by_kind.entry(kind).or_default();
+        let k = &mut self.kinds[cmd.kind_index()];
         k.count += 1;
         k.cycles += cost.0;
         Ok(Executed {

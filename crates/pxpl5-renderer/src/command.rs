@@ -230,24 +230,51 @@ pub enum Command {
 impl Command {
     /// A short stable name of the command kind, for stats and traces.
     pub fn kind(&self) -> &'static str {
+        Command::KINDS[self.kind_index()]
+    }
+
+    /// Every command kind's name, indexed by [`Command::kind_index`].
+    pub const KINDS: [&'static str; 17] = [
+        "set_origin",
+        "logic",
+        "qee_sign",
+        "qee_store",
+        "qee_compare",
+        "qee_add",
+        "write_const",
+        "copy",
+        "add",
+        "sub",
+        "compare",
+        "mul_const",
+        "save",
+        "load",
+        "fence",
+        "readback",
+        "write_pixels",
+    ];
+
+    /// The kind as a small number, for per-kind tables (host bookkeeping: cheaper than a map
+    /// keyed by name).
+    pub fn kind_index(&self) -> usize {
         match self {
-            Command::SetOrigin { .. } => "set_origin",
-            Command::Logic { .. } => "logic",
-            Command::QeeSign { .. } => "qee_sign",
-            Command::QeeStore { .. } => "qee_store",
-            Command::QeeCompare { .. } => "qee_compare",
-            Command::QeeAdd { .. } => "qee_add",
-            Command::WriteConst { .. } => "write_const",
-            Command::Copy { .. } => "copy",
-            Command::Add { .. } => "add",
-            Command::Sub { .. } => "sub",
-            Command::Compare { .. } => "compare",
-            Command::MulConst { .. } => "mul_const",
-            Command::Save { .. } => "save",
-            Command::Load { .. } => "load",
-            Command::Fence => "fence",
-            Command::Readback { .. } => "readback",
-            Command::WritePixels { .. } => "write_pixels",
+            Command::SetOrigin { .. } => 0,
+            Command::Logic { .. } => 1,
+            Command::QeeSign { .. } => 2,
+            Command::QeeStore { .. } => 3,
+            Command::QeeCompare { .. } => 4,
+            Command::QeeAdd { .. } => 5,
+            Command::WriteConst { .. } => 6,
+            Command::Copy { .. } => 7,
+            Command::Add { .. } => 8,
+            Command::Sub { .. } => 9,
+            Command::Compare { .. } => 10,
+            Command::MulConst { .. } => 11,
+            Command::Save { .. } => 12,
+            Command::Load { .. } => 13,
+            Command::Fence => 14,
+            Command::Readback { .. } => 15,
+            Command::WritePixels { .. } => 16,
         }
     }
 

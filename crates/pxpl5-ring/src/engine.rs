@@ -191,18 +191,14 @@ pub(crate) fn decide_at(
 /// arithmetic sequence `at + j*hop + m*lap` and the first one at or after the packet's eligibility
 /// is found by one division. This is what lets the ring skip idle stretches.
 pub(crate) fn next_decision(p: &Params, out: &[VecDeque<Packet>], flow: &Flow) -> Option<u64> {
-    let ready: Vec<(u32, u64)> = (0..p.nodes)
-        .filter_map(|q| {
-            startable(p, out, flow, q).map(|pkt| (q, pkt.eligible.max(flow.next_clock)))
-        })
-        .collect();
-    if ready.is_empty() {
-        return None;
-    }
     let lap = p.lap();
     let mut best: Option<u64> = None;
-    for tok in &flow.tokens {
-        for &(q, from) in &ready {
+    for q in 0..p.nodes {
+        let Some(pkt) = startable(p, out, flow, q) else {
+            continue;
+        };
+        let from = pkt.eligible.max(flow.next_clock);
+        for tok in &flow.tokens {
             let first = tok.at + p.hops(tok.pos, q) * p.hop;
             let visit = if first >= from {
                 first

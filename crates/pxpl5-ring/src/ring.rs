@@ -552,6 +552,14 @@ impl Ring {
     /// exact: advancing to it produces an event, and advancing to just before it produces none.
     pub fn next_event_tick(&self) -> Option<Tick> {
         let mut best = self.events.keys().next().map(|&(clock, _)| clock);
+        // The common case, nothing to decide before the next event, needs no copy of the flow.
+        match engine::next_decision(&self.p, &self.out, &self.flow) {
+            None => return best.map(|clock| self.clock.to_ticks(Cycles(clock))),
+            Some(t) if best.is_some_and(|b| t >= b) => {
+                return best.map(|clock| self.clock.to_ticks(Cycles(clock)));
+            }
+            Some(_) => {}
+        }
         let mut flow = self.flow.clone();
         let mut caps = Vec::new();
         while let Some(t) = engine::next_decision(&self.p, &self.out, &flow) {

@@ -51,7 +51,8 @@ fn sign_tests_cost_what_the_program_s_do() {
     let stream = cornell_stream(&cfg, &options(Method::Hemisphere), 3).unwrap();
     let mut board = Board::new(&cfg.renderer, cfg.ring.word_bits, Fidelity::Integer);
     stream.run(&mut board).unwrap();
-    let sign = &board.stats().by_kind["qee_sign"];
+    let stats = board.stats();
+    let sign = &stats.by_kind["qee_sign"];
     let mean = sign.cycles as f64 / sign.count as f64;
     assert!((60.0..66.0).contains(&mean), "{mean}");
     // The hemicube's faces run on the one board too, five views per shot.
