@@ -32,6 +32,9 @@ pub(crate) struct Outgoing {
     /// Its size in ring words, computed once at the first offer (a waiting sender is offered
     /// again at every instant, and counting a command list's words is not free).
     pub words: Option<u32>,
+    /// The sender's `Ring::output_freed` count when the ring last refused it for want of room:
+    /// until that count moves, an offer would be refused again, so none is made.
+    pub refused: Option<u64>,
 }
 
 impl Outgoing {
@@ -40,6 +43,7 @@ impl Outgoing {
             to,
             payload,
             words: None,
+            refused: None,
         }
     }
 }

@@ -263,7 +263,12 @@ impl Machine {
                 let words = *out
                     .words
                     .get_or_insert_with(|| ring_words(&self.cfg, &out.payload));
-                if let Some(taken) = self.offer(Unit::Gp(g as u32), to, words)? {
+                let mut refused = out.refused;
+                let offered = self.offer(Unit::Gp(g as u32), to, words, &mut refused)?;
+                if let GpState::BlockedSend(out) = &mut self.gps[g].state {
+                    out.refused = refused;
+                }
+                if let Some(taken) = offered {
                     let GpState::BlockedSend(out) =
                         std::mem::replace(&mut self.gps[g].state, GpState::Runnable)
                     else {
@@ -330,23 +335,34 @@ impl Machine {
 
     /// Offer the ring a message of `words` ring words from `from` to `to`: its id and route if
     /// the sender's output queue took it (the caller then hands the payload to delivery), `None`
-    /// if the queue is full. O(1): a sender waiting for room is offered again at every instant,
-    /// and nothing is copied until the ring takes the message.
+    /// if the queue is full. O(1), and nothing is copied until the ring takes the message. A
+    /// sender the ring refused (`refused` holds the sender's `Ring::output_freed` count then) is
+    /// offered again only once its output queue has freed words: before that the answer could
+    /// only be the same.
     fn offer(
         &mut self,
         from: Unit,
         to: Unit,
         words: u32,
+        refused: &mut Option<u64>,
     ) -> Result<Option<(MessageId, Route)>, RunError> {
         let (Some(src), Some(dst)) = (self.positions.get(from), self.positions.get(to)) else {
             return Err(RunError::NoSuchUnit { from, to });
         };
+        let freed = self
+            .ring
+            .output_freed(src)
+            .map_err(|error| RunError::Ring { unit: from, error })?;
+        if *refused == Some(freed) {
+            return Ok(None);
+        }
         self.host.offers += 1;
         let route = Route { from, to };
         let seq = self.delivery.next_seq(route);
         match self.ring.send(self.now, src, dst, words, seq) {
             Ok(id) => Ok(Some((id, route))),
             Err(RingError::OutputFull { .. }) => {
+                *refused = Some(freed);
                 self.host.refused_offers += 1;
                 Ok(None)
             }
@@ -430,7 +446,12 @@ impl Machine {
             let words = *out
                 .words
                 .get_or_insert_with(|| ring_words(&self.cfg, &out.payload));
-            let Some((id, route)) = self.offer(Unit::Renderer(r), to, words)? else {
+            let mut refused = out.refused;
+            let offered = self.offer(Unit::Renderer(r), to, words, &mut refused)?;
+            let Some((id, route)) = offered else {
+                if let Some(out) = self.renderers[r as usize].next_outgoing() {
+                    out.refused = refused;
+                }
                 return Ok(false);
             };
             let node = &mut self.renderers[r as usize];

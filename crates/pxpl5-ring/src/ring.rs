@@ -75,6 +75,8 @@ pub struct Ring {
     out: Vec<VecDeque<Packet>>,
     /// Output-queue words per node: packets waiting or being transmitted.
     out_used: Vec<u64>,
+    /// Per node, how many times its output queue has freed words ([`Ring::output_freed`]).
+    freed: Vec<u64>,
     flow: Flow,
     holders: Vec<Option<Holder>>,
     /// Clock of each node's latest packet start (for the token-wait statistic).
@@ -162,6 +164,7 @@ impl Ring {
             now: Tick::ZERO,
             out: vec![VecDeque::new(); n],
             out_used: vec![0; n],
+            freed: vec![0; n],
             flow: Flow {
                 tokens,
                 offsets: vec![0; n],
@@ -490,6 +493,7 @@ impl Ring {
                     node,
                     words,
                 } => {
+                    self.freed[node as usize] += 1;
                     let used = &mut self.out_used[node as usize];
                     *used = used.checked_sub(u64::from(words)).unwrap_or_else(|| {
                         panic!(
@@ -580,6 +584,14 @@ impl Ring {
     /// Whether nothing is queued or in flight (delivered messages not yet consumed do not count).
     pub fn is_idle(&self) -> bool {
         self.events.is_empty() && self.out.iter().all(VecDeque::is_empty)
+    }
+
+    /// How many times `node`'s output queue has freed words so far. A send refused for want of
+    /// room ([`RingError::OutputFull`]) is refused again, with nothing changed, until this
+    /// count moves: a waiting sender need not be offered before then.
+    pub fn output_freed(&self, node: NodeId) -> Result<u64, RingError> {
+        let q = self.check_node(node)?;
+        Ok(self.freed[q as usize])
     }
 
     /// Free words in `node`'s output queue now.
