@@ -354,7 +354,7 @@ impl Board {
             let g = self.geometry;
             match self.engine {
                 Engine::Bit(_) => self.streams.fill(expr, self.origin, g.width, g.height),
-                Engine::Integer(_) => self.streams.fill_rows(expr, self.origin, g.height),
+                Engine::Integer(_) => self.streams.set_expr(expr, self.origin),
             }
         }
         let (active, s) = (&self.active[..], &self.streams);

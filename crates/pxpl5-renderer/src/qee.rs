@@ -216,10 +216,10 @@ pub struct Streams {
     pub origin_x: i64,
     /// Whether the cross stage is in use (E != 0).
     pub cross: bool,
-    /// A and D, the x-tree's coefficients: along row py, V = D x^2 + (A + E y) x + Y(y), which
-    /// the `integer` level solves per row instead of reading `col`.
-    pub a: i64,
-    pub d: i64,
+    /// The expression and the region origin's y, for [`Streams::row_fn`]: along row py,
+    /// V = D x^2 + (A + E y) x + Y(y), which the `integer` level solves per row.
+    pub expr: QeeExpr,
+    pub origin_y: i64,
 }
 
 impl Streams {
@@ -232,8 +232,8 @@ impl Streams {
             e_row: Vec::with_capacity(height),
             origin_x: 0,
             cross: false,
-            a: 0,
-            d: 0,
+            expr: QeeExpr::default(),
+            origin_y: 0,
         };
         s.fill(expr, origin, width, height);
         s
@@ -242,21 +242,13 @@ impl Streams {
     /// Overwrite these streams with those of `expr` (as [`Streams::new`]), reusing the vectors:
     /// a board keeps one `Streams` and refills it for every QEE command.
     pub fn fill(&mut self, expr: &QeeExpr, origin: (u32, u32), width: usize, height: usize) {
-        self.fill_rows(expr, origin, height);
-        let ox = self.origin_x;
+        self.set_expr(expr, origin);
+        let (ox, oy) = (origin.0 as i64, origin.1 as i64);
         self.col.clear();
         self.col.extend((0..width as i64).map(|px| {
             let x = ox + px;
             expr.a * x + expr.d * x * x
         }));
-    }
-
-    /// Only what [`Streams::row_fn`] reads (`row`, `e_row` and the coefficients), with `col`
-    /// left empty: the `integer` level evaluates rows as quadratics and never reads the columns'
-    /// stream, so it does not pay for it.
-    pub fn fill_rows(&mut self, expr: &QeeExpr, origin: (u32, u32), height: usize) {
-        let (ox, oy) = (origin.0 as i64, origin.1 as i64);
-        self.col.clear();
         self.row.clear();
         self.row.extend((0..height as i64).map(|py| {
             let y = oy + py;
@@ -265,10 +257,19 @@ impl Streams {
         self.e_row.clear();
         self.e_row
             .extend((0..height as i64).map(|py| expr.e * (oy + py)));
-        self.origin_x = ox;
+    }
+
+    /// Only what [`Streams::row_fn`] reads, the expression and the origin, with the three
+    /// streams left empty: the `integer` level evaluates rows as quadratics and never reads the
+    /// streams, so it does not pay for them.
+    pub fn set_expr(&mut self, expr: &QeeExpr, origin: (u32, u32)) {
+        self.col.clear();
+        self.row.clear();
+        self.e_row.clear();
+        self.expr = *expr;
+        self.origin_x = i64::from(origin.0);
+        self.origin_y = i64::from(origin.1);
         self.cross = expr.e != 0;
-        self.a = expr.a;
-        self.d = expr.d;
     }
 
     /// V along row `py` as a function of the column: `D x^2 + (A + E y) x + Y(y)` with
@@ -276,10 +277,12 @@ impl Streams {
     /// config's bound on coefficient and coordinate bits keeps every partial sum inside i64.
     #[inline]
     pub fn row_fn(&self, py: usize) -> RowFn {
+        let e = &self.expr;
+        let y = self.origin_y + py as i64;
         RowFn {
-            d: self.d,
-            b: self.a + self.e_row[py],
-            r: self.row[py],
+            d: e.d,
+            b: e.a + e.e * y,
+            r: e.c + e.b * y + e.f * y * y,
             x0: self.origin_x,
         }
     }

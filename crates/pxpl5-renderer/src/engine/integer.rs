@@ -139,12 +139,14 @@ impl IntegerEngine {
             Bit::Enable => None,
         };
         let mut row = usize::MAX;
+        let mut hints = Hints::new(self.geometry.width);
         for &g in active {
             let g = g as usize;
             let py = g / gpr;
             if py != row {
                 row = py;
-                sign_row(s.row_fn(py), window, range, self.geometry.width, row_bits);
+                let width = self.geometry.width;
+                sign_row(s.row_fn(py), (window, range), width, row_bits, &mut hints);
             }
             let v = row_bits[g - py * gpr];
             match &mut flag {
@@ -191,11 +193,10 @@ fn set_span(out: &mut [u64], lo: usize, hi: usize) {
 }
 
 /// The first px in `lo ..= hi` where `pred` holds, `hi + 1` if none, for a `pred` that is false
-/// and then true on the range. Gallops from `guess` (any estimate; clamped), so a good guess
-/// costs two evaluations and a bad one a binary search's worth.
-fn first_true(lo: usize, hi: usize, guess: f64, pred: impl Fn(usize) -> bool) -> usize {
-    // NaN clamps to lo (`as` saturates); the clamp keeps the guess inside the range.
-    let g = (guess.max(lo as f64).min(hi as f64) as usize).clamp(lo, hi);
+/// and then true on the range. Gallops from `guess` (any estimate; clamped), so a guess off by
+/// `d` costs about 2 log2(d) + 2 evaluations.
+fn first_true(lo: usize, hi: usize, guess: usize, pred: impl Fn(usize) -> bool) -> usize {
+    let g = guess.clamp(lo, hi);
     // First true in (f, t], knowing pred(t).
     let bisect = |mut f: usize, mut t: usize| {
         while t - f > 1 {
@@ -235,40 +236,33 @@ fn first_true(lo: usize, hi: usize, guess: f64, pred: impl Fn(usize) -> bool) ->
     }
 }
 
-/// The real roots of the row's quadratic (or its linear root), in px, as estimates: at most two,
-/// NaN where there is none.
-fn root_estimates(v: RowFn) -> [f64; 2] {
-    let (d, b, r) = (v.d as f64, v.b as f64, v.r as f64);
-    let x0 = v.x0 as f64;
-    if v.d == 0 {
-        return [-r / b - x0, f64::NAN];
-    }
-    let disc = b * b - 4.0 * d * r;
-    if disc < 0.0 {
-        return [f64::NAN, f64::NAN];
-    }
-    let q = disc.sqrt();
-    [(-b - q) / (2.0 * d) - x0, (-b + q) / (2.0 * d) - x0]
+/// Where a sign test's previous row found its answers: the next row's searches start there,
+/// since a boundary moves little from one row to the next (exactness does not depend on it).
+#[derive(Clone, Copy)]
+struct Hints {
+    /// The split between the two monotone pieces.
+    k: usize,
+    /// The end of the span in each piece.
+    first: [usize; 2],
 }
 
-/// The estimate of the crossing inside `lo ..= hi`: the root nearest the range.
-fn guess_in(roots: [f64; 2], lo: usize, hi: usize) -> f64 {
-    let dist = |x: f64| {
-        if x.is_nan() {
-            f64::INFINITY
-        } else {
-            (lo as f64 - x).max(x - hi as f64).max(0.0)
+impl Hints {
+    fn new(width: usize) -> Hints {
+        Hints {
+            k: width / 2,
+            first: [width / 2; 2],
         }
-    };
-    if dist(roots[0]) <= dist(roots[1]) {
-        roots[0]
-    } else {
-        roots[1]
     }
 }
 
 /// The W >= 0 bits of one row into `out` (one u64 per 64 columns).
-fn sign_row(v: RowFn, window: Window, range: Unwrapped, width: usize, out: &mut [u64]) {
+fn sign_row(
+    v: RowFn,
+    (window, range): (Window, Unwrapped),
+    width: usize,
+    out: &mut [u64],
+    hints: &mut Hints,
+) {
     out.fill(0);
     let last = width - 1;
     if v.d == 0 {
@@ -280,15 +274,14 @@ fn sign_row(v: RowFn, window: Window, range: Unwrapped, width: usize, out: &mut 
         let x = v.x0 + px as i64;
         v.d * (2 * x + 1) + v.b
     };
-    let k = if last == 0 || v.d == 0 || (diff(0) >= 0) == (diff(last - 1) >= 0) {
+    let k = if last == 0 || (diff(0) >= 0) == (diff(last - 1) >= 0) {
         last
     } else {
         let rising = diff(0) < 0;
-        let vertex = -(v.b as f64) / (2.0 * v.d as f64) - 0.5 - v.x0 as f64;
-        first_true(0, last - 1, vertex, |px| (diff(px) >= 0) == rising)
+        hints.k = first_true(0, last - 1, hints.k, |px| (diff(px) >= 0) == rising);
+        hints.k
     };
-    let roots = root_estimates(v);
-    let mut piece = |lo: usize, hi: usize| {
+    let mut piece = |lo: usize, hi: usize, hint: &mut usize| {
         let (a, b) = (v.at(lo), v.at(hi));
         if !(range.holds(a) && range.holds(b)) {
             let top = window.bits - 1;
@@ -304,19 +297,20 @@ fn sign_row(v: RowFn, window: Window, range: Unwrapped, width: usize, out: &mut 
             (false, false) => {}
             // Non-decreasing: from the first px with f >= 0.
             (false, true) => {
-                let first = first_true(lo, hi, guess_in(roots, lo, hi), |px| v.at(px) >= 0);
-                set_span(out, first, hi);
+                *hint = first_true(lo, hi, *hint, |px| v.at(px) >= 0);
+                set_span(out, *hint, hi);
             }
             // Non-increasing: up to the last px with f >= 0.
             (true, false) => {
-                let first_neg = first_true(lo, hi, guess_in(roots, lo, hi), |px| v.at(px) < 0);
-                set_span(out, lo, first_neg - 1);
+                *hint = first_true(lo, hi, *hint, |px| v.at(px) < 0);
+                set_span(out, lo, *hint - 1);
             }
         }
     };
-    piece(0, k);
+    let [first, second] = &mut hints.first;
+    piece(0, k, first);
     if k < last {
-        piece(k, last);
+        piece(k, last, second);
     }
 }
 
