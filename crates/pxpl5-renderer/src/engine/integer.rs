@@ -183,12 +183,29 @@ impl Unwrapped {
     }
 }
 
-/// Set bits `lo ..= hi` of a row (one u64 per group), a group at a time.
+/// Set bits `lo ..= hi` of a row (one u64 per group).
+#[inline]
 fn set_span(out: &mut [u64], lo: usize, hi: usize) {
-    for (g, group) in out.iter_mut().enumerate().take(hi / 64 + 1).skip(lo / 64) {
-        let first = lo.max(g * 64) - g * 64;
-        let last = hi.min(g * 64 + 63) - g * 64;
-        *group |= mask(last as u32 + 1) & !mask(first as u32);
+    let (g0, g1) = (lo / 64, hi / 64);
+    let (from, to) = (u64::MAX << (lo % 64), mask((hi % 64) as u32 + 1));
+    if g0 == g1 {
+        out[g0] |= from & to;
+    } else {
+        out[g0] |= from;
+        out[g0 + 1..g1].fill(u64::MAX);
+        out[g1] |= to;
+    }
+}
+
+/// The W >= 0 bits of pixels `lo ..= hi` of a row one by one, for a piece whose window may wrap
+/// (rare: programs choose windows that hold their values).
+#[cold]
+fn sign_pixels(v: RowFn, window: Window, lo: usize, hi: usize, out: &mut [u64]) {
+    let top = window.bits - 1;
+    for px in lo..=hi {
+        if (window.cut(v.at(px)) >> top) & 1 == 0 {
+            out[px / 64] |= 1 << (px % 64);
+        }
     }
 }
 
@@ -284,13 +301,7 @@ fn sign_row(
     let mut piece = |lo: usize, hi: usize, hint: &mut usize| {
         let (a, b) = (v.at(lo), v.at(hi));
         if !(range.holds(a) && range.holds(b)) {
-            let top = window.bits - 1;
-            for px in lo..=hi {
-                if (window.cut(v.at(px)) >> top) & 1 == 0 {
-                    out[px / 64] |= 1 << (px % 64);
-                }
-            }
-            return;
+            return sign_pixels(v, window, lo, hi, out);
         }
         match (a >= 0, b >= 0) {
             (true, true) => set_span(out, lo, hi),
@@ -319,14 +330,7 @@ fn sign_row(
 fn linear_sign_row(v: RowFn, window: Window, range: Unwrapped, last: usize, out: &mut [u64]) {
     let (f0, fl) = (v.at(0), v.at(last));
     if !(range.holds(f0) && range.holds(fl)) {
-        // The window may wrap somewhere along the row: pixel by pixel.
-        let top = window.bits - 1;
-        for px in 0..=last {
-            if (window.cut(v.at(px)) >> top) & 1 == 0 {
-                out[px / 64] |= 1 << (px % 64);
-            }
-        }
-        return;
+        return sign_pixels(v, window, 0, last, out);
     }
     match (f0 >= 0, fl >= 0) {
         (true, true) => set_span(out, 0, last),

@@ -93,8 +93,22 @@ impl Registers {
 
     /// `dst := op(a, b)`: one ALU step on every pixel.
     pub fn logic(&mut self, dst: Bit, a: Bit, b: Bit, op: LogicOp) {
-        // In chunks through a buffer on the stack, so `dst` may be `a` or `b` and the inner loops
-        // run over plain slices.
+        if let Bit::Flag(i) = dst
+            && a != dst
+            && b != dst
+        {
+            // The usual case, a flag from other registers: one pass, the flag's plane taken out
+            // so the others can be read beside it.
+            let mut flag = std::mem::take(&mut self.flags[i as usize]);
+            let (pa, pb) = (self.plane(a), self.plane(b));
+            for (((f, &x), &y), &en) in flag.iter_mut().zip(pa).zip(pb).zip(&self.enable) {
+                *f = gated(*f, en, op.apply(x, y));
+            }
+            self.flags[i as usize] = flag;
+            return;
+        }
+        // Otherwise in chunks through a buffer on the stack, so `dst` may be `a` or `b` and the
+        // inner loops run over plain slices.
         const CHUNK: usize = 64;
         let mut buf = [0u64; CHUNK];
         let n = self.enable.len();
@@ -145,7 +159,14 @@ impl Registers {
         match enable_write {
             Some(op) if !op.keeps_zero() => out.extend(0..self.enable.len() as u32),
             _ => {
-                out.extend((0..self.enable.len() as u32).filter(|&g| self.enable[g as usize] != 0))
+                // Branch-free: write every group, advance past the enabled ones.
+                out.resize(self.enable.len(), 0);
+                let mut k = 0;
+                for (g, &en) in self.enable.iter().enumerate() {
+                    out[k] = g as u32;
+                    k += usize::from(en != 0);
+                }
+                out.truncate(k);
             }
         }
     }
