@@ -1,16 +1,25 @@
-//! `pxpl5 bench renderer`: the Renderer's simulation speed at each fidelity level, on the command
-//! stream the radiosity program sends for its first Cornell-box shots (`pxpl5_radiosity::stream`),
-//! hemisphere and hemicube.
+//! `pxpl5 bench`: simulation speed on fixed, documented workloads.
 //!
-//! Simulated figures (Renderer cycles, digest) must be identical across levels, and the command
-//! fails if they are not. Host figures (seconds, simulated cycles per host second) are the fastest
-//! of `--repeat` runs on fresh boards, so that a busy machine disturbs them less.
+//! - `bench renderer`: the Renderer at each fidelity level, on the command stream the radiosity
+//!   program sends for its first Cornell-box shots (`pxpl5_radiosity::stream`), hemisphere and
+//!   hemicube, on one board.
+//! - `bench machine`: the whole machine (GPs, ring, Renderers) running the main job's radiosity
+//!   program for a fixed number of shots: simulated seconds per host second.
+//!
+//! Simulated figures (cycles, digests, solutions) must be identical across levels, and the command
+//! fails if they are not. Host seconds are the CPU time of the simulating thread (wall time on a
+//! shared machine counts other processes' work too), the fastest of `--repeat` runs; `--instructions` also counts the instructions the host executes in the
+//! simulation itself, with valgrind's callgrind (exact and repeatable where host time jitters: the
+//! way to compare levels and builds on a shared machine).
 
 use std::path::PathBuf;
-use std::time::Instant;
 
 use clap::Args;
-use pxpl5_radiosity::shot::FfOptions;
+use cpu_time::ThreadTime;
+use pxpl5_machine::Recorder;
+use pxpl5_radiosity::experiment::{self, MAIN_JOB_PATCH_SIZE, Settings};
+use pxpl5_radiosity::mesh::mesh;
+use pxpl5_radiosity::shot::{FfOptions, Method};
 use pxpl5_radiosity::stream::{Stream, cornell_stream};
 use pxpl5_renderer::{Board, Fidelity};
 
@@ -43,6 +52,11 @@ pub struct RendererArgs {
     /// Runs per level; host figures are those of the fastest.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
     pub repeat: u32,
+    /// Also count the host instructions each level executes running the stream (valgrind's
+    /// callgrind, run on this binary once per method and level: slow, about 50x, but exact),
+    /// and print instructions per simulated Renderer cycle.
+    #[arg(long)]
+    pub instructions: bool,
 }
 
 impl Default for RendererArgs {
@@ -55,6 +69,7 @@ impl Default for RendererArgs {
             shots: 3,
             resolution: 128,
             repeat: 3,
+            instructions: false,
         }
     }
 }
@@ -67,6 +82,8 @@ struct Measured {
     host_seconds: f64,
     /// Sign tests and their Renderer cycles.
     signs: (u64, u64),
+    /// Host instructions running the stream, when counted.
+    instructions: Option<u64>,
 }
 
 pub fn renderer(args: &RendererArgs) -> Result<(), UserError> {
@@ -85,7 +102,13 @@ pub fn renderer(args: &RendererArgs) -> Result<(), UserError> {
                 method.name()
             ))
         })?;
-        let results = measure(&stream, &cfg, &levels, args.repeat)?;
+        let mut results = measure(&stream, &cfg, &levels, args.repeat)?;
+        if args.instructions {
+            for m in &mut results {
+                let child = renderer_child_args(args, method, m.fidelity);
+                m.instructions = Some(count_instructions(&child, "*Stream::run*")?);
+            }
+        }
         report.push((stream, results));
     }
     let agree = report.iter().all(|(_, results)| {
@@ -118,7 +141,7 @@ fn measure(
         let mut best: Option<Measured> = None;
         for _ in 0..repeat {
             let mut board = Board::new(&cfg.renderer, cfg.ring.word_bits, fidelity);
-            let t0 = Instant::now();
+            let t0 = ThreadTime::now();
             let cycles = stream.run(&mut board).map_err(|e| {
                 UserError(format!("the benchmark stream failed on this config: {e}"))
             })?;
@@ -134,6 +157,7 @@ fn measure(
                 digest: board.image().digest(),
                 host_seconds,
                 signs,
+                instructions: None,
             };
             if best
                 .as_ref()
@@ -164,6 +188,8 @@ fn print_json(
                         "digest": m.digest,
                         "host_seconds": m.host_seconds,
                         "cycles_per_host_second": m.cycles as f64 / m.host_seconds,
+                        "host_instructions": m.instructions,
+                        "instructions_per_cycle": m.instructions.map(|i| i as f64 / m.cycles as f64),
                     })
                 })
                 .collect();
@@ -222,17 +248,25 @@ fn print_table(
             sign_cycles as f64 / signs.max(1) as f64
         )?;
         outln!(
-            "{:<9} {:>16} {:>14}  {:<16} {:>12} {:>22}",
+            "{:<9} {:>16} {:>14}  {:<16} {:>12} {:>22}{}",
             "fidelity",
             "Renderer cycles",
             "simulated ms",
             "digest",
-            "host s",
-            "cycles per host s"
+            "host CPU s",
+            "cycles per host s",
+            if args.instructions {
+                "  host instructions  per cycle"
+            } else {
+                ""
+            }
         )?;
         for m in results {
+            let counted = m.instructions.map_or(String::new(), |i| {
+                format!("  {i:>17}  {:>9.1}", i as f64 / m.cycles as f64)
+            });
             outln!(
-                "{:<9} {:>16} {:>14.3}  {:<16} {:>12.4} {:>19.2} M",
+                "{:<9} {:>16} {:>14.3}  {:<16} {:>12.4} {:>19.2} M{counted}",
                 m.fidelity.name(),
                 m.cycles,
                 m.cycles as f64 / r.clock_hz as f64 * 1e3,
@@ -249,4 +283,255 @@ fn print_table(
         )?;
     }
     Ok(())
+}
+
+/// The arguments that make this binary run `args`' stream for one method at one level, once:
+/// what [`count_instructions`] runs under callgrind.
+fn renderer_child_args(args: &RendererArgs, method: Method, fidelity: Fidelity) -> Vec<String> {
+    let mut child = vec![
+        "bench".to_string(),
+        "renderer".to_string(),
+        "--json".to_string(),
+        format!("--method={}", method.name()),
+        format!("--fidelity={}", fidelity.name()),
+        format!("--shots={}", args.shots),
+        format!("--resolution={}", args.resolution),
+        "--repeat=1".to_string(),
+    ];
+    if let Some(c) = &args.config {
+        child.push(format!("--config={}", c.display()));
+    }
+    child
+}
+
+/// The host instructions executed inside functions matching `function` (a callgrind
+/// `--toggle-collect` pattern) when this binary runs with `args`: exact, and the same on every
+/// run of the same build, unlike host time.
+fn count_instructions(args: &[String], function: &str) -> Result<u64, UserError> {
+    let exe = std::env::current_exe()
+        .map_err(|e| UserError(format!("--instructions: cannot find this program: {e}")))?;
+    let dir = std::env::temp_dir().join(format!("pxpl5-instructions-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| UserError(format!("--instructions: {}: {e}", dir.display())))?;
+    let out = dir.join("callgrind.out");
+    let status = std::process::Command::new("valgrind")
+        .arg("--tool=callgrind")
+        .arg(format!("--toggle-collect={function}"))
+        .arg(format!("--callgrind-out-file={}", out.display()))
+        .arg(&exe)
+        .args(args)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .status();
+    let text = std::fs::read_to_string(&out);
+    // Best effort: a temporary directory left behind is no error.
+    let _ = std::fs::remove_dir_all(&dir);
+    match status {
+        Err(e) => Err(UserError(format!(
+            "--instructions needs valgrind (apt-get install valgrind): {e}"
+        ))),
+        Ok(s) if !s.success() => Err(UserError(format!(
+            "--instructions: the counted run `{} {}` failed under valgrind ({s})",
+            exe.display(),
+            args.join(" ")
+        ))),
+        Ok(_) => text
+            .ok()
+            .and_then(|t| {
+                t.lines()
+                    .find_map(|l| l.strip_prefix("summary:"))
+                    .and_then(|n| n.trim().parse().ok())
+            })
+            .ok_or_else(|| UserError("--instructions: valgrind wrote no instruction count".into())),
+    }
+}
+
+/// Options of `pxpl5 bench machine`.
+#[derive(Args, Clone, Debug)]
+pub struct MachineArgs {
+    /// Fidelity level of the Renderers: bit, integer, or all.
+    #[arg(long, value_enum, default_value_t = BenchFidelity::Integer)]
+    pub fidelity: BenchFidelity,
+    /// Machine config (RON); default: the embedded seed machine.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Print JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+    /// Form-factor method: hemisphere, hemicube, or both.
+    #[arg(long, value_enum, default_value_t = Methods::Both)]
+    pub method: Methods,
+    /// Shots of progressive refinement per run (fixed, so the work is: no target accuracy).
+    #[arg(long, default_value_t = 24, value_parser = clap::value_parser!(u32).range(1..=10_000))]
+    pub shots: u32,
+    /// Runs per level; host figures are those of the fastest.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub repeat: u32,
+    /// Also count the host instructions of each simulation (valgrind's callgrind, once per
+    /// method and level: slow but exact), and print them per simulated microsecond.
+    #[arg(long)]
+    pub instructions: bool,
+}
+
+/// One level's run of the machine workload.
+struct MachineRun {
+    fidelity: Fidelity,
+    simulated_seconds: f64,
+    host_seconds: f64,
+    /// The solution's bits, which every level must reproduce.
+    solution: Vec<u64>,
+    instructions: Option<u64>,
+}
+
+/// `pxpl5 bench machine`: the main job's radiosity program, a fixed number of shots per method,
+/// on the whole machine.
+pub fn machine(args: &MachineArgs) -> Result<(), UserError> {
+    let cfg = config_cmd::load(args.config.as_deref())?;
+    let scene = pxpl5_radiosity::scenes::cornell_empty();
+    let patches = mesh(&scene, MAIN_JOB_PATCH_SIZE)
+        .map_err(|e| UserError(format!("the main job's mesh: {e}")))?;
+    let mut report = Vec::new();
+    for method in args.method.methods() {
+        let mut runs = Vec::new();
+        for fidelity in args.fidelity.levels() {
+            let mut settings = Settings::fixed_shots(method, args.shots as usize, &cfg);
+            settings.run.fidelity = fidelity;
+            let mut best: Option<MachineRun> = None;
+            for _ in 0..args.repeat {
+                let t0 = ThreadTime::now();
+                let run = experiment::run(&cfg, &patches, &settings, Recorder::default())
+                    .map_err(|e| UserError(format!("the machine workload failed: {e}")))?;
+                let host_seconds = t0.elapsed().as_secs_f64();
+                let m = MachineRun {
+                    fidelity,
+                    simulated_seconds: run.stats.end.as_secs_f64(),
+                    host_seconds,
+                    solution: run
+                        .solution
+                        .radiosity
+                        .iter()
+                        .flatten()
+                        .map(|x| x.to_bits())
+                        .collect(),
+                    instructions: None,
+                };
+                if best.as_ref().is_none_or(|b| host_seconds < b.host_seconds) {
+                    best = Some(m);
+                }
+            }
+            let mut m = best.expect("at least one run");
+            if args.instructions {
+                let mut child = vec![
+                    "bench".to_string(),
+                    "machine".to_string(),
+                    "--json".to_string(),
+                    format!("--method={}", method.name()),
+                    format!("--fidelity={}", fidelity.name()),
+                    format!("--shots={}", args.shots),
+                ];
+                if let Some(c) = &args.config {
+                    child.push(format!("--config={}", c.display()));
+                }
+                m.instructions = Some(count_instructions(&child, "*Machine::run*")?);
+            }
+            runs.push(m);
+        }
+        report.push((method, runs));
+    }
+    let agree = report.iter().all(|(_, runs)| {
+        runs.windows(2).all(|w| {
+            w[0].simulated_seconds == w[1].simulated_seconds && w[0].solution == w[1].solution
+        })
+    });
+    if args.json {
+        let methods: Vec<_> = report
+            .iter()
+            .map(|(method, runs)| {
+                let levels: Vec<_> = runs
+                    .iter()
+                    .map(|m| {
+                        serde_json::json!({
+                            "fidelity": m.fidelity.name(),
+                            "simulated_seconds": m.simulated_seconds,
+                            "host_seconds": m.host_seconds,
+                            "simulated_per_host_second": m.simulated_seconds / m.host_seconds,
+                            "host_instructions": m.instructions,
+                            "instructions_per_simulated_us": m
+                                .instructions
+                                .map(|i| i as f64 / (m.simulated_seconds * 1e6)),
+                        })
+                    })
+                    .collect();
+                serde_json::json!({ "method": method.name(), "levels": levels })
+            })
+            .collect();
+        let out = serde_json::json!({
+            "config": cfg.name,
+            "config_hash": pxpl5_config::config_hash(&cfg),
+            "patches": patches.len(),
+            "shots": args.shots,
+            "methods": methods,
+            "levels_agree": agree,
+        });
+        outln!(
+            "{}",
+            serde_json::to_string_pretty(&out).map_err(UserError::from)?
+        )?;
+    } else {
+        outln!(
+            "pxpl5 bench machine: the main job's radiosity program for {} shots per method\n\
+             machine {} (hash {}): {} GPs, {} Renderers, {} ring channels; the empty Cornell box, \
+             {} patches; host figures: fastest of {} runs",
+            args.shots,
+            cfg.name,
+            pxpl5_config::config_hash(&cfg),
+            cfg.gp.count,
+            cfg.renderer.count,
+            cfg.ring.channels,
+            patches.len(),
+            args.repeat
+        )?;
+        outln!(
+            "\n{:<11} {:<9} {:>13} {:>10} {:>22}{}",
+            "method",
+            "fidelity",
+            "simulated ms",
+            "host CPU s",
+            "simulated s per host s",
+            if args.instructions {
+                "  host instructions  per simulated us"
+            } else {
+                ""
+            }
+        )?;
+        for (method, runs) in &report {
+            for m in runs {
+                let counted = m.instructions.map_or(String::new(), |i| {
+                    format!(
+                        "  {i:>17}  {:>16.0}",
+                        i as f64 / (m.simulated_seconds * 1e6)
+                    )
+                });
+                outln!(
+                    "{:<11} {:<9} {:>13.3} {:>10.3} {:>22.3}{counted}",
+                    method.name(),
+                    m.fidelity.name(),
+                    m.simulated_seconds * 1e3,
+                    m.host_seconds,
+                    m.simulated_seconds / m.host_seconds
+                )?;
+            }
+        }
+        if report.iter().any(|(_, r)| r.len() > 1) {
+            outln!(
+                "\nlevels agree on time and solution: {}",
+                if agree { "yes" } else { "NO (a simulator bug)" }
+            )?;
+        }
+    }
+    if agree {
+        Ok(())
+    } else {
+        panic!("fidelity levels disagree on the machine benchmark: simulator bug");
+    }
 }

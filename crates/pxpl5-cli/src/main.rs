@@ -75,6 +75,7 @@ impl Command {
             Command::Formfactor(_) => "formfactor",
             Command::Run(_) => "run",
             Command::Bench(BenchCommand::Renderer(_)) => "bench renderer",
+            Command::Bench(BenchCommand::Machine(_)) => "bench machine",
             Command::Stats(StatsCommand::Diff(_)) => "stats diff",
         }
     }
@@ -140,6 +141,11 @@ enum BenchCommand {
     /// memory, host seconds and simulated Renderer cycles per host second. Every fidelity level
     /// prints the same cycles and digest.
     Renderer(bench::RendererArgs),
+    /// Run the main job's radiosity program (the empty Cornell box, 199 patches, on the whole
+    /// machine: GPs, ring and Renderers) for a fixed number of shots per method and print the
+    /// simulated time, host seconds and simulated seconds per host second. Every fidelity level
+    /// gives the same time and solution.
+    Machine(bench::MachineArgs),
 }
 
 fn main() -> ExitCode {
@@ -207,6 +213,7 @@ fn run_command(command: Option<Command>) -> Result<(), Failure> {
             Ok(config_cmd::show(file.as_deref())?)
         }
         Some(Command::Bench(BenchCommand::Renderer(args))) => Ok(bench::renderer(&args)?),
+        Some(Command::Bench(BenchCommand::Machine(args))) => Ok(bench::machine(&args)?),
         Some(Command::Run(args)) => run::run(&args),
         Some(Command::Radiosity(args)) => radiosity::radiosity(&args),
         Some(Command::Formfactor(args)) => radiosity::formfactor(&args),

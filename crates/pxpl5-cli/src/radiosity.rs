@@ -68,7 +68,7 @@ pub struct RadiosityArgs {
     pub threshold: f64,
     /// Patch size in scene units (the Cornell box is in millimetres); the mesh may have at most
     /// 65,534 patches (the machine's 16-bit patch IDs).
-    #[arg(long, default_value_t = 120.0, value_parser = positive_finite)]
+    #[arg(long, default_value_t = experiment::MAIN_JOB_PATCH_SIZE, value_parser = positive_finite)]
     pub patch_size: f64,
     /// Pixels across the hemisphere's disk and the hemicube's top face, 1 to 4096; the machine
     /// limits it further (a disk larger than a Renderer is cut into tiles of 128 x 128, drawn in

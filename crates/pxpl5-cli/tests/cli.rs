@@ -127,6 +127,83 @@ fn bench_levels_print_the_same_cycles_and_digest() {
 }
 
 #[test]
+fn machine_bench_levels_give_the_same_time_and_solution() {
+    let out = pxpl5(&[
+        "bench",
+        "machine",
+        "--shots",
+        "2",
+        "--fidelity",
+        "all",
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["levels_agree"], true);
+    assert_eq!(v["patches"], 199, "the main job's mesh");
+    let methods = v["methods"].as_array().unwrap();
+    assert_eq!(methods.len(), 2);
+    for m in methods {
+        let levels = m["levels"].as_array().unwrap();
+        assert_eq!(levels.len(), 2);
+        assert_eq!(
+            levels[0]["simulated_seconds"],
+            levels[1]["simulated_seconds"]
+        );
+        // Two shots (one batch of the seed's 4 shooters cut to 2) take a few simulated ms.
+        let t = levels[0]["simulated_seconds"].as_f64().unwrap();
+        assert!((1e-3..20e-3).contains(&t), "{m}");
+        assert!(levels[1]["host_seconds"].as_f64().unwrap() > 0.0);
+        assert!(levels[1]["host_instructions"].is_null(), "not asked for");
+    }
+}
+
+#[test]
+fn bench_counts_instructions_with_valgrind_or_says_it_needs_it() {
+    let out = pxpl5(&[
+        "bench",
+        "renderer",
+        "--instructions",
+        "--shots",
+        "1",
+        "--resolution",
+        "16",
+        "--method",
+        "hemicube",
+        "--fidelity",
+        "integer",
+        "--repeat",
+        "1",
+        "--json",
+    ]);
+    let has_valgrind = std::process::Command::new("valgrind")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !has_valgrind {
+        assert_eq!(out.status.code(), Some(2));
+        assert!(
+            text(&out.stderr).contains("needs valgrind"),
+            "{}",
+            text(&out.stderr)
+        );
+        return;
+    }
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let level = &v["streams"][0]["levels"][0];
+    let (ir, cycles) = (
+        level["host_instructions"].as_u64().unwrap(),
+        level["renderer_cycles"].as_u64().unwrap(),
+    );
+    // Only the stream's execution is counted (not the process's set-up or the digest): tens to
+    // a few thousand instructions per simulated Renderer cycle.
+    let per = level["instructions_per_cycle"].as_f64().unwrap();
+    assert!((10.0..5_000.0).contains(&per), "{per} per cycle");
+    assert!((per - ir as f64 / cycles as f64).abs() < 1e-6);
+}
+
+#[test]
 fn help_explains_each_subcommand() {
     let out = pxpl5(&["--help"]);
     let help = text(&out.stdout);

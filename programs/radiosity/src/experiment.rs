@@ -65,6 +65,26 @@ impl Default for Settings {
     }
 }
 
+/// The main job's patch size (`pxpl5 radiosity`'s default): the empty Cornell box at 120 mm
+/// makes 199 patches.
+pub const MAIN_JOB_PATCH_SIZE: f64 = 120.0;
+
+impl Settings {
+    /// The main job's settings for `method` on `cfg`, but a fixed number of shots with no target
+    /// accuracy: a workload whose work does not depend on how fast it converges (the benchmarks').
+    pub fn fixed_shots(method: Method, shots: usize, cfg: &MachineConfig) -> Settings {
+        Settings {
+            ff: FfOptions {
+                method,
+                ..FfOptions::default()
+            },
+            shots,
+            shooters_at_once: cfg.renderer.count as usize,
+            ..Settings::default()
+        }
+    }
+}
+
 /// One method's measured run.
 pub struct MethodRun {
     pub method: Method,
