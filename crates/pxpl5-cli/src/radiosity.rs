@@ -70,6 +70,10 @@ pub struct RadiosityArgs {
     /// 65,534 patches (the machine's 16-bit patch IDs).
     #[arg(long, default_value_t = experiment::MAIN_JOB_PATCH_SIZE, value_parser = positive_finite)]
     pub patch_size: f64,
+    /// Host threads for the Renderers' pixel work (1: all in one thread). Host work only: every
+    /// output is byte-identical whatever the number. Default: the available cores.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=256))]
+    pub threads: Option<u32>,
     /// Pixels across the hemisphere's disk and the hemicube's top face, 1 to 4096; the machine
     /// limits it further (a disk larger than a Renderer is cut into tiles of 128 x 128, drawn in
     /// turn, each within the QEE's pixel addresses; a hemicube face must fit one Renderer, and N
@@ -171,6 +175,7 @@ impl RadiosityArgs {
                 fidelity: self.fidelity.into(),
                 max_time: self.time_limit,
                 monitor: None,
+                threads: crate::run::host_threads(self.threads),
             },
         }
     }

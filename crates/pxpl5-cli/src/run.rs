@@ -34,6 +34,10 @@ pub struct RunArgs {
     /// Machine config (RON); default: the embedded seed machine.
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// Host threads for the Renderers' pixel work (1: all in one thread). Host work only: every
+    /// output is byte-identical whatever the number. Default: the available cores.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=256))]
+    pub threads: Option<u32>,
     /// The program to run.
     #[arg(long, value_enum, default_value_t = ProgramArg::Polygons)]
     pub program: ProgramArg,
@@ -99,6 +103,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         fidelity: args.fidelity.into(),
         max_time: args.time_limit,
         monitor: None,
+        threads: host_threads(args.threads),
     };
     watch::estimate(
         &Estimate {
@@ -160,6 +165,14 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
 /// GPs and Renderers of `cfg`, for work estimates.
 pub fn machine_units(cfg: &MachineConfig) -> u64 {
     u64::from(cfg.gp.count) + u64::from(cfg.renderer.count)
+}
+
+/// `--threads`: the number asked for, or the host's available cores.
+pub fn host_threads(asked: Option<u32>) -> usize {
+    asked.map_or_else(
+        || std::thread::available_parallelism().map_or(1, |n| n.get()),
+        |n| n as usize,
+    )
 }
 
 /// The trace options every simulating subcommand takes.

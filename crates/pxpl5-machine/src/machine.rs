@@ -24,6 +24,7 @@ use std::cell::RefCell;
 use std::rc::Rc;
 
 use pxpl5_config::MachineConfig;
+use pxpl5_renderer::Workers;
 use pxpl5_ring::{MessageId, Ring, RingError};
 use pxpl5_sim::{ClockDomain, ComponentId, EventQueue, Priority, Tick};
 
@@ -91,6 +92,8 @@ pub struct Machine {
     /// Each Renderer command kind's category, by `Command::kind_index`, made on first use.
     kinds: Vec<Option<Cat>>,
     host: HostWork,
+    /// The host threads of the Renderers' pixel work, if any (kept as long as the boards).
+    _workers: Option<Workers>,
 }
 
 fn clock(hz: u64, what: &str) -> Result<ClockDomain, RunError> {
@@ -128,6 +131,9 @@ impl Machine {
                 GpNode::new(gp, program, gp_clock)
             })
             .collect();
+        // Pixel work on host threads only when asked for, and never more threads than boards.
+        let workers = (options.threads > 1 && cfg.renderer.count > 1)
+            .then(|| Workers::new(options.threads.min(cfg.renderer.count as usize)));
         let renderers = (0..cfg.renderer.count)
             .map(|r| {
                 RendererNode::new(
@@ -137,6 +143,7 @@ impl Machine {
                     cfg.ring.max_message_words,
                     options.fidelity,
                     r_clock,
+                    workers.as_ref(),
                 )
             })
             .collect();
@@ -148,6 +155,7 @@ impl Machine {
             categories,
             fixed,
             kinds: vec![None; pxpl5_renderer::Command::KINDS.len()],
+            _workers: workers,
             host: HostWork::default(),
             cfg: cfg.clone(),
             units,

@@ -16,7 +16,7 @@
 use std::collections::VecDeque;
 
 use pxpl5_config::RendererConfig;
-use pxpl5_renderer::{Board, Command, Fidelity};
+use pxpl5_renderer::{Board, Command, Fidelity, Workers};
 use pxpl5_ring::MessageId;
 use pxpl5_sim::{ClockDomain, Tick};
 
@@ -91,10 +91,16 @@ impl RendererNode {
         max_message_words: u32,
         fidelity: Fidelity,
         clock: ClockDomain,
+        workers: Option<&Workers>,
     ) -> RendererNode {
+        let board = Board::new(cfg, word_bits, fidelity).stream_readbacks(max_message_words);
+        let board = match workers {
+            Some(w) => board.on_workers(w),
+            None => board,
+        };
         RendererNode {
             index,
-            board: Board::new(cfg, word_bits, fidelity).stream_readbacks(max_message_words),
+            board,
             clock,
             queue: VecDeque::new(),
             running: None,

@@ -22,6 +22,10 @@ pub struct RunOptions {
     /// Where the host watches the run and may ask it to stop; `None` runs it unwatched. It never
     /// changes a result of a run that is not asked to stop (see [`Monitor`]).
     pub monitor: Option<Arc<Monitor>>,
+    /// Host threads for the Renderers' pixel work: 1 does it in the machine's own thread; more
+    /// run the boards' pixel work on a pool of that many workers (`pxpl5_renderer::Workers`).
+    /// Host work only: every result is identical whatever the number.
+    pub threads: usize,
 }
 
 impl Default for RunOptions {
@@ -31,6 +35,7 @@ impl Default for RunOptions {
             // 10 simulated seconds: far beyond any shipped program's run.
             max_time: Tick(10_000_000_000_000),
             monitor: None,
+            threads: 1,
         }
     }
 }

@@ -122,6 +122,7 @@ fn the_largest_costs_at_the_slowest_clocks_stop_at_the_time_limit() {
                 fidelity: Fidelity::Integer,
                 max_time,
                 monitor: None,
+                threads: 1,
             };
             let err = Machine::new(&cfg, &EveryCost, options, Recorder::new(None, None))
                 .expect("builds")
@@ -254,6 +255,7 @@ proptest::proptest! {
             fidelity: Fidelity::Integer,
             max_time: Tick(1_000_000_000_000),
             monitor: None,
+            threads: 1,
         };
         let machine = Machine::new(&cfg, &EveryCost, options, Recorder::new(None, None));
         if let Ok(machine) = machine {

@@ -73,6 +73,7 @@ fn run_with(
         fidelity,
         max_time,
         monitor: None,
+        threads: 1,
     };
     Machine::new(cfg, p, options, recorder)?.run()
 }
@@ -631,6 +632,7 @@ fn a_stop_asked_now_ends_the_run_at_the_next_look_with_where_it_was() {
     monitor.request(Stop::Now);
     let options = RunOptions {
         monitor: Some(monitor.clone()),
+        threads: 1,
         ..RunOptions::default()
     };
     let p = forever_in_steps(steps.clone());
@@ -668,6 +670,7 @@ fn a_monitor_changes_nothing_in_a_run_not_stopped_now() {
     monitor.request(Stop::Soon);
     let options = RunOptions {
         monitor: Some(monitor.clone()),
+        threads: 1,
         ..RunOptions::default()
     };
     let watched = Machine::new(&cfg, &p, options, Recorder::new(None, None))

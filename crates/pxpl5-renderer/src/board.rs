@@ -23,6 +23,7 @@ use crate::engine::integer::IntegerEngine;
 use crate::engine::{Geometry, PixelEngine, QeeSink};
 use crate::qee::{COEFFICIENT_NAMES, Streams};
 use crate::readback::{ReadbackMessage, pack_messages};
+use crate::workers::{Remote, Workers};
 
 /// How the pixel work is simulated. Results and cycle counts are identical at every level.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -207,25 +208,40 @@ impl Engine {
 /// One Renderer board.
 pub struct Board {
     cfg: RendererConfig,
+    /// The cycle at which the last command ends (or the board stops idling).
+    free_at: Cycles,
+    backing_store_free: Cycles,
+    in_flight: Vec<Transfer>,
+    stats: BoardStats,
+    /// Per command kind, by [`Command::kind_index`] (`stats` puts them into `by_kind`).
+    kinds: [KindStats; Command::KINDS.len()],
+    /// The pixel state, here or on a host worker thread ([`Board::on_workers`]).
+    pixels: Side,
+}
+
+/// Where a board's pixel work runs.
+enum Side {
+    Here(Box<Pixels>),
+    Away(Remote),
+}
+
+/// A board's pixel state and the work that changes it: everything but time. A board's pixels
+/// depend only on its commands in order, so this part can run on another host thread, ahead of
+/// the machine, as long as a readback waits for it ([`crate::workers`]).
+pub(crate) struct Pixels {
+    cfg: RendererConfig,
     geometry: Geometry,
     ring_word_bits: u32,
     /// Most ring words per readback message (see [`Board::stream_readbacks`]).
     max_message_words: u32,
     engine: Engine,
     origin: (u32, u32),
-    /// The cycle at which the last command ends (or the board stops idling).
-    free_at: Cycles,
-    backing_store_free: Cycles,
-    in_flight: Vec<Transfer>,
     /// Backing store, allocated a block at a time on first save: block -> block_bits planes.
     backing_store: BTreeMap<u32, Vec<u64>>,
-    stats: BoardStats,
     /// Scratch reused by every command (host work only): the groups it can change, and the
     /// QEE's streams.
     active: Vec<u32>,
     streams: Streams,
-    /// Per command kind, by [`Command::kind_index`] (`stats` puts them into `by_kind`).
-    kinds: [KindStats; Command::KINDS.len()],
 }
 
 impl Board {
@@ -240,28 +256,45 @@ impl Board {
                 Engine::Integer(IntegerEngine::new(geometry, cfg.pixel_memory_bits, flags))
             }
         };
-        Board {
+        let pixels = Pixels {
             cfg: cfg.clone(),
             geometry,
             ring_word_bits,
             max_message_words: u32::MAX,
             engine,
             origin: (0, 0),
+            backing_store: BTreeMap::new(),
+            active: Vec::new(),
+            streams: Streams::new(&crate::QeeExpr::default(), (0, 0), 0, 0),
+        };
+        Board {
+            cfg: cfg.clone(),
             free_at: Cycles::ZERO,
             backing_store_free: Cycles::ZERO,
             in_flight: Vec::new(),
-            backing_store: BTreeMap::new(),
             stats: BoardStats::default(),
-            active: Vec::new(),
             kinds: Default::default(),
-            streams: Streams::new(&crate::QeeExpr::default(), (0, 0), 0, 0),
+            pixels: Side::Here(Box::new(pixels)),
         }
+    }
+
+    /// Do this board's pixel work on a host thread of `workers` from now on. Results are
+    /// identical: the thread applies the board's commands in order, and a readback (or any look
+    /// at the pixels) waits until it has caught up.
+    pub fn on_workers(mut self, workers: &Workers) -> Board {
+        if let Side::Here(pixels) = self.pixels {
+            self.pixels = Side::Away(workers.adopt(pixels));
+        }
+        self
     }
 
     /// Send readbacks in messages of at most `max_message_words` ring words (whole rows, at least
     /// one per message), as the ring's longest message requires.
     pub fn stream_readbacks(mut self, max_message_words: u32) -> Board {
-        self.max_message_words = max_message_words;
+        match &mut self.pixels {
+            Side::Here(p) => p.max_message_words = max_message_words,
+            Side::Away(_) => panic!("stream_readbacks after on_workers: set it first"),
+        }
         self
     }
 
@@ -310,8 +343,13 @@ impl Board {
         let end = start + cost;
         self.in_flight.retain(|t| t.done > start);
 
-        let mut readback = None;
-        self.apply(cmd, end, &mut readback);
+        if let Command::Save { field, .. } | Command::Load { field, .. } = *cmd {
+            self.start_transfer(field, end);
+        }
+        let readback = match &mut self.pixels {
+            Side::Here(p) => p.apply(cmd),
+            Side::Away(r) => r.apply(cmd),
+        };
 
         self.free_at = end;
         self.stats.commands += 1;
@@ -326,143 +364,6 @@ impl Board {
             stall,
             readback,
         })
-    }
-
-    /// The pixel (or board-state) effect of a validated command that ends at cycle `end`.
-    fn apply(&mut self, cmd: &Command, end: Cycles, readback: &mut Option<ReadbackStream>) {
-        // The groups the command can change, listed only for the commands that need them (a Logic
-        // or SetOrigin command, half a hemisphere stream, needs none): `None` for a gated write
-        // (any enabled pixel), else how it combines into a one-bit register.
-        let writes = match *cmd {
-            Command::QeeSign { dst, combine, .. }
-            | Command::QeeCompare { dst, combine, .. }
-            | Command::Compare { dst, combine, .. } => Some(enable_write(dst, combine)),
-            Command::QeeStore { .. }
-            | Command::QeeAdd { .. }
-            | Command::WriteConst { .. }
-            | Command::Copy { .. }
-            | Command::Add { .. }
-            | Command::Sub { .. }
-            | Command::MulConst { .. } => Some(None),
-            _ => None,
-        };
-        if let Some(w) = writes {
-            let regs = self.engine.get().registers();
-            regs.active_groups(w, &mut self.active);
-        }
-        if let Some((expr, _)) = cmd.qee() {
-            let g = self.geometry;
-            match self.engine {
-                Engine::Bit(_) => self.streams.fill(expr, self.origin, g.width, g.height),
-                Engine::Integer(_) => self.streams.set_expr(expr, self.origin),
-            }
-        }
-        let (active, s) = (&self.active[..], &self.streams);
-        let engine = self.engine.get_mut();
-        match *cmd {
-            Command::SetOrigin { x, y } => self.origin = (x, y),
-            Command::Logic { dst, a, b, op } => engine.registers_mut().logic(dst, a, b, op),
-            Command::QeeSign {
-                window,
-                dst,
-                combine,
-                ..
-            } => engine.qee(s, window, QeeSink::Sign { dst, combine }, active),
-            Command::QeeStore { window, dst, .. } => {
-                engine.qee(s, window, QeeSink::Store { dst }, active)
-            }
-            Command::QeeCompare {
-                window,
-                field,
-                cmp,
-                dst,
-                combine,
-                ..
-            } => {
-                let sink = QeeSink::Compare {
-                    field,
-                    cmp,
-                    dst,
-                    combine,
-                };
-                engine.qee(s, window, sink, active);
-            }
-            Command::QeeAdd { window, dst, .. } => {
-                engine.qee(s, window, QeeSink::Add { dst }, active)
-            }
-            Command::WriteConst { dst, value } => engine.write_const(dst, value, active),
-            Command::Copy { dst, src } => engine.copy(dst, src, active),
-            Command::Add { dst, a, b } => engine.add_sub(dst, a, b, false, active),
-            Command::Sub { dst, a, b } => engine.add_sub(dst, a, b, true, active),
-            Command::Compare {
-                a,
-                b,
-                cmp,
-                dst,
-                combine,
-            } => engine.compare(a, b, cmp, dst, combine, active),
-            Command::MulConst {
-                dst,
-                src,
-                k,
-                k_bits,
-            } => engine.mul_const(dst, src, k, k_bits, active),
-            Command::Save { field, block } => {
-                // The data are copied at issue: the interlock keeps every later access to the
-                // field behind the transfer's end, so no command can see the difference.
-                let planes = self.engine.get().read_planes(field);
-                let groups = self.geometry.groups;
-                let block_bits = self.cfg.backing_store.block_bits as usize;
-                for (i, chunk) in planes.chunks(block_bits * groups).enumerate() {
-                    let stored = self
-                        .backing_store
-                        .entry(block + i as u32)
-                        .or_insert_with(|| vec![0; block_bits * groups]);
-                    stored[..chunk.len()].copy_from_slice(chunk);
-                }
-                self.start_transfer(field, end);
-            }
-            Command::Load { field, block } => {
-                let groups = self.geometry.groups;
-                let block_bits = self.cfg.backing_store.block_bits as usize;
-                let mut planes = vec![0u64; field.bits as usize * groups];
-                for (i, chunk) in planes.chunks_mut(block_bits * groups).enumerate() {
-                    // A block never saved reads as zeros (the simulator's definition of VRAM
-                    // never written).
-                    if let Some(stored) = self.backing_store.get(&(block + i as u32)) {
-                        chunk.copy_from_slice(&stored[..chunk.len()]);
-                    }
-                }
-                self.engine.get_mut().write_planes(field, &planes);
-                self.start_transfer(field, end);
-            }
-            Command::Fence => {}
-            Command::WritePixels {
-                dst,
-                rect,
-                ref values,
-            } => self.engine.get_mut().write_values(dst, rect, values),
-            Command::Readback {
-                field,
-                rect,
-                dest,
-                tag,
-            } => {
-                let values = self.engine.get().read_values(field, rect);
-                *readback = Some(ReadbackStream {
-                    dest,
-                    tag,
-                    bits: field.bits,
-                    messages: pack_messages(
-                        &values,
-                        rect,
-                        field.bits,
-                        self.ring_word_bits,
-                        self.max_message_words,
-                    ),
-                });
-            }
-        }
     }
 
     /// Queue a background transfer of `field` on the backing-store engine, issued at `issued`.
@@ -657,6 +558,168 @@ impl Board {
 
     /// The board's state in the canonical form both fidelity levels share.
     pub fn image(&self) -> BoardImage {
+        match &self.pixels {
+            Side::Here(p) => p.image(),
+            Side::Away(r) => r.image(),
+        }
+    }
+
+    /// Raw values of a field over the whole array, row by row (for tests and pictures).
+    pub fn field_values(&self, field: Field) -> Vec<u64> {
+        match &self.pixels {
+            Side::Here(p) => p.field_values(field),
+            Side::Away(r) => r.field_values(field),
+        }
+    }
+
+    /// One one-bit register of every pixel, row by row.
+    pub fn bit_values(&self, b: Bit) -> Vec<bool> {
+        match &self.pixels {
+            Side::Here(p) => p.bit_values(b),
+            Side::Away(r) => r.bit_values(b),
+        }
+    }
+}
+
+impl Pixels {
+    /// The pixel (or board-state) effect of a validated command, and the messages of a readback.
+    pub(crate) fn apply(&mut self, cmd: &Command) -> Option<ReadbackStream> {
+        // The groups the command can change, listed only for the commands that need them (a Logic
+        // or SetOrigin command, half a hemisphere stream, needs none): `None` for a gated write
+        // (any enabled pixel), else how it combines into a one-bit register.
+        let writes = match *cmd {
+            Command::QeeSign { dst, combine, .. }
+            | Command::QeeCompare { dst, combine, .. }
+            | Command::Compare { dst, combine, .. } => Some(enable_write(dst, combine)),
+            Command::QeeStore { .. }
+            | Command::QeeAdd { .. }
+            | Command::WriteConst { .. }
+            | Command::Copy { .. }
+            | Command::Add { .. }
+            | Command::Sub { .. }
+            | Command::MulConst { .. } => Some(None),
+            _ => None,
+        };
+        if let Some(w) = writes {
+            let regs = self.engine.get().registers();
+            regs.active_groups(w, &mut self.active);
+        }
+        if let Some((expr, _)) = cmd.qee() {
+            let g = self.geometry;
+            match self.engine {
+                Engine::Bit(_) => self.streams.fill(expr, self.origin, g.width, g.height),
+                Engine::Integer(_) => self.streams.set_expr(expr, self.origin),
+            }
+        }
+        let (active, s) = (&self.active[..], &self.streams);
+        let engine = self.engine.get_mut();
+        match *cmd {
+            Command::SetOrigin { x, y } => self.origin = (x, y),
+            Command::Logic { dst, a, b, op } => engine.registers_mut().logic(dst, a, b, op),
+            Command::QeeSign {
+                window,
+                dst,
+                combine,
+                ..
+            } => engine.qee(s, window, QeeSink::Sign { dst, combine }, active),
+            Command::QeeStore { window, dst, .. } => {
+                engine.qee(s, window, QeeSink::Store { dst }, active)
+            }
+            Command::QeeCompare {
+                window,
+                field,
+                cmp,
+                dst,
+                combine,
+                ..
+            } => {
+                let sink = QeeSink::Compare {
+                    field,
+                    cmp,
+                    dst,
+                    combine,
+                };
+                engine.qee(s, window, sink, active);
+            }
+            Command::QeeAdd { window, dst, .. } => {
+                engine.qee(s, window, QeeSink::Add { dst }, active)
+            }
+            Command::WriteConst { dst, value } => engine.write_const(dst, value, active),
+            Command::Copy { dst, src } => engine.copy(dst, src, active),
+            Command::Add { dst, a, b } => engine.add_sub(dst, a, b, false, active),
+            Command::Sub { dst, a, b } => engine.add_sub(dst, a, b, true, active),
+            Command::Compare {
+                a,
+                b,
+                cmp,
+                dst,
+                combine,
+            } => engine.compare(a, b, cmp, dst, combine, active),
+            Command::MulConst {
+                dst,
+                src,
+                k,
+                k_bits,
+            } => engine.mul_const(dst, src, k, k_bits, active),
+            Command::Save { field, block } => {
+                // The data are copied at issue: the interlock keeps every later access to the
+                // field behind the transfer's end, so no command can see the difference.
+                let planes = self.engine.get().read_planes(field);
+                let groups = self.geometry.groups;
+                let block_bits = self.cfg.backing_store.block_bits as usize;
+                for (i, chunk) in planes.chunks(block_bits * groups).enumerate() {
+                    let stored = self
+                        .backing_store
+                        .entry(block + i as u32)
+                        .or_insert_with(|| vec![0; block_bits * groups]);
+                    stored[..chunk.len()].copy_from_slice(chunk);
+                }
+            }
+            Command::Load { field, block } => {
+                let groups = self.geometry.groups;
+                let block_bits = self.cfg.backing_store.block_bits as usize;
+                let mut planes = vec![0u64; field.bits as usize * groups];
+                for (i, chunk) in planes.chunks_mut(block_bits * groups).enumerate() {
+                    // A block never saved reads as zeros (the simulator's definition of VRAM
+                    // never written).
+                    if let Some(stored) = self.backing_store.get(&(block + i as u32)) {
+                        chunk.copy_from_slice(&stored[..chunk.len()]);
+                    }
+                }
+                self.engine.get_mut().write_planes(field, &planes);
+            }
+            Command::Fence => {}
+            Command::WritePixels {
+                dst,
+                rect,
+                ref values,
+            } => self.engine.get_mut().write_values(dst, rect, values),
+            Command::Readback {
+                field,
+                rect,
+                dest,
+                tag,
+            } => {
+                let values = self.engine.get().read_values(field, rect);
+                return Some(ReadbackStream {
+                    dest,
+                    tag,
+                    bits: field.bits,
+                    messages: pack_messages(
+                        &values,
+                        rect,
+                        field.bits,
+                        self.ring_word_bits,
+                        self.max_message_words,
+                    ),
+                });
+            }
+        }
+        None
+    }
+
+    /// The board's state in the canonical form both fidelity levels share.
+    pub(crate) fn image(&self) -> BoardImage {
         let e = self.engine.get();
         let memory = e.read_planes(Field {
             offset: 0,
@@ -684,7 +747,7 @@ impl Board {
     }
 
     /// Raw values of a field over the whole array, row by row (for tests and pictures).
-    pub fn field_values(&self, field: Field) -> Vec<u64> {
+    pub(crate) fn field_values(&self, field: Field) -> Vec<u64> {
         let rect = Rect {
             x: 0,
             y: 0,
@@ -695,7 +758,7 @@ impl Board {
     }
 
     /// One one-bit register of every pixel, row by row.
-    pub fn bit_values(&self, b: Bit) -> Vec<bool> {
+    pub(crate) fn bit_values(&self, b: Bit) -> Vec<bool> {
         let regs = self.engine.get().registers();
         (0..self.geometry.groups * 64)
             .map(|p| (regs.get(b, p / 64) >> (p % 64)) & 1 != 0)

@@ -9,6 +9,8 @@
 //!   streams.
 //! - [`qee`] fixes the QEE's exact semantics and its documented result-cut rule.
 //! - [`PixelLayout`] allocates named fields in pixel memory; [`readback`] packs ring words and messages.
+//! - [`Workers`] runs boards' pixel work on host threads ([`Board::on_workers`]), with identical
+//!   results.
 //!
 //! This crate knows nothing of the ring, GPs or programs: a readback names its destination node
 //! only as an opaque number, and time is the board's own count of Renderer cycles.
@@ -20,6 +22,7 @@ pub mod engine;
 mod layout;
 pub mod qee;
 pub mod readback;
+mod workers;
 
 pub use board::{
     Board, BoardImage, BoardStats, CommandError, Executed, Fidelity, KindStats, ReadbackStream,
@@ -28,3 +31,4 @@ pub use command::{Bit, Cmp, Command, Field, LogicOp, Rect};
 pub use cycles::{backing_store_blocks, backing_store_cycles, cycle_cost};
 pub use layout::{LayoutError, PixelLayout};
 pub use qee::{QeeExpr, QuantiseError, Window};
+pub use workers::Workers;

@@ -60,6 +60,7 @@ impl Default for Settings {
                 // with many shots may need it, and a runaway program still stops.
                 max_time: Tick(1_000_000_000_000_000),
                 monitor: None,
+                threads: 1,
             },
         }
     }

@@ -217,6 +217,7 @@ fn a_monitored_run_counts_its_shots_and_stops_between_them_when_asked() {
         threshold: 0.0,
         run: RunOptions {
             monitor,
+            threads: 1,
             ..Settings::default().run
         },
         ..Settings::default()
