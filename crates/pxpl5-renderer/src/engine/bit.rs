@@ -4,13 +4,19 @@
 //!
 //! The QEE's three streams (x-tree, y-tree, cross stage; see [`crate::qee`]) arrive one bit-plane
 //! per cycle, least significant bit first, and each pixel adds them with two serial adders before
-//! its ALU consumes the sum. A group of 64 pixels is carried through all of a command's
-//! micro-cycles before the next group (the groups are independent, so the order of the loops
-//! changes nothing but the host's cache use).
+//! its ALU consumes the sum. The host runs a QEE command on *blocks* of words, two rows by one or
+//! more groups, each block through all of the command's micro-cycles before the next, with the
+//! carries of its adders in registers and one loop per kind of result (the blocks are
+//! independent, so their order changes nothing but the host's work). The x-tree's planes are
+//! built once per command; the cross stage's planes Z(x, y) = (E y) x move from row to row by the
+//! tree's own recurrence, Z(x, y + 2) = Z(x, y) + 2 E x, one bit-sliced add per plane. A block's
+//! two rows share one host vector register ([`wide`], portable, with the same results wherever
+//! it runs), so each operation works on 128 pixels.
 
 use super::{Geometry, PixelEngine, QeeSink, Registers, gated, transpose64};
 use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
 use crate::qee::{Streams, Window};
+use wide::u64x2;
 
 /// Bit-plane pixel memory and the shared one-bit registers.
 pub struct BitEngine {
@@ -215,43 +221,49 @@ impl PixelEngine for BitEngine {
 /// stage, and each has its own row stream, so a block's rows fill a host vector register.
 const ROWS: usize = 2;
 
-/// One word of each row of a block (the same group column), side by side and aligned so that
-/// the host keeps them in one vector register.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[repr(align(16))]
-struct Rows([u64; ROWS]);
+/// One word of each row of a block (the same group column), side by side in one host vector
+/// register: every operation on it is one instruction for both rows.
+#[derive(Clone, Copy, Default, PartialEq, Eq)]
+struct Rows(u64x2);
 
 impl Rows {
     #[inline(always)]
     fn splat(v: u64) -> Rows {
-        Rows([v; ROWS])
+        Rows(u64x2::splat(v))
+    }
+
+    #[inline(always)]
+    fn from_lanes(v: [u64; ROWS]) -> Rows {
+        Rows(u64x2::new(v))
+    }
+
+    #[inline(always)]
+    fn lanes(self) -> [u64; ROWS] {
+        self.0.to_array()
     }
 }
 
-macro_rules! rows_op {
-    ($trait:ident, $method:ident, $op:tt) => {
-        impl std::ops::$trait for Rows {
-            type Output = Rows;
-            #[inline(always)]
-            fn $method(self, o: Rows) -> Rows {
-                let mut r = self;
-                for (a, b) in r.0.iter_mut().zip(o.0) {
-                    *a $op b;
-                }
-                r
-            }
-        }
-    };
-}
-rows_op!(BitAnd, bitand, &=);
-rows_op!(BitOr, bitor, |=);
-rows_op!(BitXor, bitxor, ^=);
-
-impl std::ops::Not for Rows {
+impl std::ops::BitAnd for Rows {
     type Output = Rows;
     #[inline(always)]
-    fn not(self) -> Rows {
-        Rows(self.0.map(|v| !v))
+    fn bitand(self, o: Rows) -> Rows {
+        Rows(self.0 & o.0)
+    }
+}
+
+impl std::ops::BitOr for Rows {
+    type Output = Rows;
+    #[inline(always)]
+    fn bitor(self, o: Rows) -> Rows {
+        Rows(self.0 | o.0)
+    }
+}
+
+impl std::ops::BitXor for Rows {
+    type Output = Rows;
+    #[inline(always)]
+    fn bitxor(self, o: Rows) -> Rows {
+        Rows(self.0 ^ o.0)
     }
 }
 
@@ -275,90 +287,68 @@ type Words<const G: usize> = [Rows; G];
 struct Scratch {
     /// The x-tree's planes, X(x) = A x + D x^2.
     col: Vec<Rows>,
-    /// The cross stage's planes, Z(x, y) = (E y) x, for the rows of the block in `cross_row`.
+    /// The cross stage's planes, Z(x, y) = (E y) x, for the rows from `cross_row`.
     cross: Vec<Rows>,
-    /// The cross stage's step from one block of rows to the next,
-    /// Z(x, y + ROWS) - Z(x, y) = ROWS E x.
+    /// The planes of E x, group column c's plane j at `c * 64 + j`: Z's step from a row to the next.
+    ex: Vec<u64>,
+    /// Z's step from one block of rows to the next, Z(x, y + ROWS) - Z(x, y) = ROWS E x.
     step: Vec<Rows>,
-    /// The first row whose Z `cross` holds, per block column (`usize::MAX`: none yet).
+    /// The first row whose Z `cross` holds, per group column (`usize::MAX`: none yet).
     cross_row: Vec<usize>,
     /// Which groups of the current block of rows the command may change (row-major).
     lanes: Vec<bool>,
 }
 
-/// How many blocks of rows a block column's cross planes may be stepped forward instead of being
-/// built afresh (a step is one bit-sliced add per plane; a fresh build is [`ROWS`] x G 64 x 64
-/// transposes, which cost about as much as this many steps).
+/// How many blocks of rows a group column's cross planes may be stepped forward instead of being
+/// built afresh (a step is one bit-sliced add per plane; a fresh build a 64 x 64 transpose and an
+/// add, which cost about as much as this many steps).
 const MAX_STEPS: usize = 4;
 
-/// The 64 bit-planes of `values(i)` for the pixels i = 0..64 of a group, `out[j * stride]` for
-/// plane j, each put in place by `set`.
-fn planes_of(
-    out: &mut [Rows],
-    stride: usize,
-    values: impl Fn(usize) -> i64,
-    set: impl Fn(&mut Rows, u64),
-) {
+/// The 64 bit-planes of `values(i)` for the pixels i = 0..64 of a group, plane j into
+/// `set(j, plane)`.
+fn planes_of(values: impl Fn(usize) -> i64, mut set: impl FnMut(usize, u64)) {
     let mut m = [0u64; 64];
     for (i, v) in m.iter_mut().enumerate() {
         *v = values(i) as u64;
     }
     transpose64(&mut m);
     for (j, &p) in m.iter().enumerate() {
-        set(&mut out[j * stride], p);
+        set(j, p);
     }
 }
 
-/// The tree's streams into one block, and the carries of its pixels' two stream adders.
-struct BlockStream<'a, const G: usize, const CROSS: bool> {
+/// The tree's streams into `N` of the `G` group columns of a block column, from column `c0`,
+/// and the carries of the pixels' two stream adders.
+struct BlockStream<'a, const G: usize, const N: usize, const CROSS: bool> {
     /// The x-tree's planes of the block's group columns.
     col: &'a [Words<G>],
     /// The cross stage's planes for the block's rows, advanced in place to the next block of
     /// rows as they are used.
     cross: &'a mut [Words<G>],
     step: &'a [Words<G>],
+    c0: usize,
     /// Y(y) of each row: bit j goes to every pixel of the row at micro-cycle j.
     rows: [u64; ROWS],
     /// Carries of the x + y adder, the (x + y) + z adder, and the cross stage's row step.
-    c1: Words<G>,
-    c2: Words<G>,
-    c_step: Words<G>,
+    c1: Words<N>,
+    c2: Words<N>,
+    c_step: Words<N>,
 }
 
-impl<'a, const G: usize, const CROSS: bool> BlockStream<'a, G, CROSS> {
-    fn new(
-        col: &'a [Words<G>],
-        cross: &'a mut [Words<G>],
-        step: &'a [Words<G>],
-        rows: [u64; ROWS],
-    ) -> Self {
-        let zero = [Rows::default(); G];
-        BlockStream {
-            col,
-            cross,
-            step,
-            rows,
-            c1: zero,
-            c2: zero,
-            c_step: zero,
-        }
-    }
-
+impl<'a, const G: usize, const N: usize, const CROSS: bool> BlockStream<'a, G, N, CROSS> {
     /// Micro-cycles `from .. to`, each one's bit of every pixel's V handed to `f` with its
     /// cycle number.
     #[inline(always)]
-    fn run(&mut self, from: usize, to: usize, mut f: impl FnMut(usize, Words<G>)) {
-        // The row streams bit-reversed, so that bit j is the top bit at micro-cycle j: an
-        // arithmetic shift spreads it over the row's word.
-        let mut rest = Rows(
-            self.rows
-                .map(|y| y.reverse_bits().checked_shl(from as u32).unwrap_or(0)),
-        );
+    fn run(&mut self, from: usize, to: usize, mut f: impl FnMut(usize, Words<N>)) {
+        // Bit j of each row's stream, spread over the row's word: 0 - ((y >> j) & 1).
+        let mut rest = u64x2::new(self.rows.map(|y| y.checked_shr(from as u32).unwrap_or(0)));
+        let (zero, one) = (u64x2::splat(0), u64x2::splat(1));
         let mut row_bits = || {
-            let bits = Rows(rest.0.map(|v| ((v as i64) >> 63) as u64));
-            rest = Rows(rest.0.map(|v| v << 1));
+            let bits = Rows(zero - (rest & one));
+            rest >>= 1;
             bits
         };
+        let c0 = self.c0;
         let col = &self.col[from..to];
         if CROSS {
             let planes = col
@@ -367,13 +357,13 @@ impl<'a, const G: usize, const CROSS: bool> BlockStream<'a, G, CROSS> {
                 .zip(&self.step[from..to]);
             for (j, ((x, z), d)) in (from..).zip(planes) {
                 let y = row_bits();
-                let mut v = [Rows::default(); G];
-                for c in 0..G {
-                    let s1 = add_rows(x[c], y, &mut self.c1[c]);
-                    let zc = z[c];
+                let mut v = [Rows::default(); N];
+                for c in 0..N {
+                    let s1 = add_rows(x[c0 + c], y, &mut self.c1[c]);
+                    let zc = z[c0 + c];
                     // The cross stage moves on to the next rows while these are consumed:
                     // Z(x, y + ROWS) = Z(x, y) + ROWS E x, one plane per cycle with its carry.
-                    z[c] = add_rows(zc, d[c], &mut self.c_step[c]);
+                    z[c0 + c] = add_rows(zc, d[c0 + c], &mut self.c_step[c]);
                     v[c] = add_rows(s1, zc, &mut self.c2[c]);
                 }
                 f(j, v);
@@ -381,9 +371,9 @@ impl<'a, const G: usize, const CROSS: bool> BlockStream<'a, G, CROSS> {
         } else {
             for (j, x) in (from..).zip(col) {
                 let y = row_bits();
-                let mut v = [Rows::default(); G];
-                for c in 0..G {
-                    v[c] = add_rows(x[c], y, &mut self.c1[c]);
+                let mut v = [Rows::default(); N];
+                for c in 0..N {
+                    v[c] = add_rows(x[c0 + c], y, &mut self.c1[c]);
                 }
                 f(j, v);
             }
@@ -394,18 +384,25 @@ impl<'a, const G: usize, const CROSS: bool> BlockStream<'a, G, CROSS> {
 /// One block's place: its first row and group column, the words the command may change (bit
 /// `c * ROWS + r` for column c, row r), their enables (0 where it may not).
 #[derive(Clone, Copy)]
-struct Block<const G: usize> {
+struct Block<const N: usize> {
     py: usize,
     cx: usize,
     lanes: u32,
-    en: Words<G>,
+    en: [[u64; ROWS]; N],
 }
 
-impl<const G: usize> Block<G> {
+impl<const N: usize> Block<N> {
     #[inline(always)]
     fn changes(&self, c: usize, r: usize) -> bool {
         self.lanes >> (c * ROWS + r) & 1 != 0
     }
+}
+
+/// One QEE command's streams as bit-planes, and what it does, for [`BitEngine::qee_block`].
+struct QeeCommand<'a> {
+    s: &'a Streams,
+    window: Window,
+    sink: QeeSink,
 }
 
 impl BitEngine {
@@ -432,31 +429,37 @@ impl BitEngine {
         sink: QeeSink,
         active: &[u32],
     ) {
-        let (gpr, height) = (self.geometry.groups_per_row, self.geometry.height);
-        let columns = gpr / G;
-        let cycles = window.delivered_bits() as usize;
+        let gpr = self.geometry.groups_per_row;
         let mut sc = std::mem::take(&mut self.scratch);
         // Group column c's plane j at entry (c / G * 64 + j) * G + c % G.
-        let at = |c: usize| c / G * 64 * G + c % G;
+        let at = |c: usize, j: usize| (c / G * 64 + j) * G + c % G;
         sc.col.resize(64 * gpr, Rows::default());
         for c in 0..gpr {
-            let splat = |p: &mut Rows, v| *p = Rows::splat(v);
-            planes_of(&mut sc.col[at(c)..], G, |i| s.col[c * 64 + i], splat);
+            planes_of(
+                |i| s.col[c * 64 + i],
+                |j, p| sc.col[at(c, j)] = Rows::splat(p),
+            );
         }
         if CROSS {
             sc.cross.resize(64 * gpr, Rows::default());
+            sc.ex.resize(64 * gpr, 0);
             sc.step.resize(64 * gpr, Rows::default());
             sc.cross_row.clear();
-            sc.cross_row.resize(columns, usize::MAX);
-            let step = ROWS as i64 * s.expr.e;
+            sc.cross_row.resize(gpr, usize::MAX);
             for c in 0..gpr {
                 let x = |i: usize| s.origin_x + (c * 64 + i) as i64;
-                let splat = |p: &mut Rows, v| *p = Rows::splat(v);
-                planes_of(&mut sc.step[at(c)..], G, |i| step * x(i), splat);
+                planes_of(|i| s.expr.e * x(i), |j, p| sc.ex[c * 64 + j] = p);
+                // ROWS E x = (E x) << 1: plane j is E x's plane j - 1.
+                const { assert!(ROWS == 2) };
+                sc.step[at(c, 0)] = Rows::default();
+                for j in 1..64 {
+                    sc.step[at(c, j)] = Rows::splat(sc.ex[c * 64 + j - 1]);
+                }
             }
         }
         sc.lanes.clear();
         sc.lanes.resize(ROWS * gpr, false);
+        let cmd = QeeCommand { s, window, sink };
         let mut i = 0;
         while i < active.len() {
             // The active groups of the next block of rows.
@@ -466,57 +469,25 @@ impl BitEngine {
                 sc.lanes[active[i] as usize - py * gpr] = true;
                 i += 1;
             }
-            // A row past the array's last (an odd height) takes the last row's streams; it has
-            // no active group, so nothing of it is written.
-            let rows: [usize; ROWS] = std::array::from_fn(|r| (py + r).min(height - 1));
-            let row_values = rows.map(|y| s.row[y] as u64);
-            for b in 0..columns {
-                let cx = b * G;
-                let mut lanes = 0u32;
-                let mut en = [Rows::default(); G];
-                for (c, en) in en.iter_mut().enumerate() {
+            for b in 0..gpr / G {
+                // Which of the block column's group columns have a word to change.
+                let mut used = 0u32;
+                for c in 0..G {
                     for r in 0..ROWS {
-                        if sc.lanes[r * gpr + cx + c] {
-                            lanes |= 1 << (c * ROWS + r);
-                            en.0[r] = self.regs.enable[(py + r) * gpr + cx + c];
+                        if sc.lanes[r * gpr + b * G + c] {
+                            used |= 1 << c;
                         }
                     }
                 }
-                if lanes == 0 {
-                    continue;
-                }
-                let block = Block { py, cx, lanes, en };
-                let (col, _) = sc.col[b * 64 * G..][..cycles * G].as_chunks::<G>();
-                if CROSS {
-                    let (step, _) = sc.step[b * 64 * G..][..cycles * G].as_chunks::<G>();
-                    let cross = &mut sc.cross[b * 64 * G..][..64 * G];
-                    let from = sc.cross_row[b];
-                    if from <= py && py - from <= MAX_STEPS * ROWS {
-                        let (planes, _) = cross[..cycles * G].as_chunks_mut::<G>();
-                        for _ in (from..py).step_by(ROWS) {
-                            let mut carry = [Rows::default(); G];
-                            for (p, d) in planes.iter_mut().zip(step) {
-                                for c in 0..G {
-                                    p[c] = add_rows(p[c], d[c], &mut carry[c]);
-                                }
-                            }
-                        }
-                    } else {
-                        for c in 0..G {
-                            let px = (cx + c) * 64;
-                            for (r, &y) in rows.iter().enumerate() {
-                                let z = |i| s.cross_at(px + i, y);
-                                planes_of(&mut cross[c..], G, z, |p, v| p.0[r] = v);
-                            }
-                        }
-                    }
-                    sc.cross_row[b] = py + ROWS;
-                    let (cross, _) = cross[..cycles * G].as_chunks_mut::<G>();
-                    let st = BlockStream::<G, true>::new(col, cross, step, row_values);
-                    self.run_block(st, window, sink, block);
+                // Every column when most are used; else each used column alone.
+                if used.count_ones() as usize * 2 > G {
+                    self.qee_block::<G, G, CROSS>(&cmd, &mut sc, py, b, 0);
                 } else {
-                    let st = BlockStream::<G, false>::new(col, &mut [], &[], row_values);
-                    self.run_block(st, window, sink, block);
+                    for c0 in 0..G {
+                        if used >> c0 & 1 != 0 {
+                            self.qee_block::<G, 1, CROSS>(&cmd, &mut sc, py, b, c0);
+                        }
+                    }
                 }
             }
             for &g in &active[first..i] {
@@ -526,40 +497,117 @@ impl BitEngine {
         self.scratch = sc;
     }
 
+    /// The `N` group columns from `c0` of block column `b`, rows `py ..`.
+    #[inline(always)]
+    #[allow(clippy::needless_range_loop)] // (c, r) index a block's words both ways
+    fn qee_block<const G: usize, const N: usize, const CROSS: bool>(
+        &mut self,
+        cmd: &QeeCommand,
+        sc: &mut Scratch,
+        py: usize,
+        b: usize,
+        c0: usize,
+    ) {
+        let (gpr, height) = (self.geometry.groups_per_row, self.geometry.height);
+        let cycles = cmd.window.delivered_bits() as usize;
+        let cx = b * G + c0;
+        let mut lanes = 0u32;
+        let mut en = [[0u64; ROWS]; N];
+        for c in 0..N {
+            for r in 0..ROWS {
+                if sc.lanes[r * gpr + cx + c] {
+                    lanes |= 1 << (c * ROWS + r);
+                    en[c][r] = self.regs.enable[(py + r) * gpr + cx + c];
+                }
+            }
+        }
+        let block = Block { py, cx, lanes, en };
+        // A row past the array's last (an odd height) takes the last row's stream; it has no
+        // active group, so nothing of it is written.
+        let rows = std::array::from_fn(|r| cmd.s.row[(py + r).min(height - 1)] as u64);
+        let (col, _) = sc.col[b * 64 * G..][..cycles * G].as_chunks::<G>();
+        let mut st = BlockStream::<G, N, CROSS> {
+            col,
+            cross: &mut [],
+            step: &[],
+            c0,
+            rows,
+            c1: [Rows::default(); N],
+            c2: [Rows::default(); N],
+            c_step: [Rows::default(); N],
+        };
+        if CROSS {
+            let (step, _) = sc.step[b * 64 * G..][..cycles * G].as_chunks::<G>();
+            let (cross, _) = sc.cross[b * 64 * G..][..cycles * G].as_chunks_mut::<G>();
+            for c in c0..c0 + N {
+                let from = sc.cross_row[b * G + c];
+                if from <= py && py - from <= MAX_STEPS * ROWS {
+                    // Catch up from the rows these planes hold.
+                    for _ in (from..py).step_by(ROWS) {
+                        let mut carry = Rows::default();
+                        for (p, d) in cross.iter_mut().zip(step) {
+                            p[c] = add_rows(p[c], d[c], &mut carry);
+                        }
+                    }
+                } else {
+                    // Afresh: Z of the first row, then of the next by adding E x.
+                    let px = (b * G + c) * 64;
+                    let mut first = [0u64; 64];
+                    planes_of(|i| cmd.s.cross_at(px + i, py), |j, p| first[j] = p);
+                    let ex = &sc.ex[(b * G + c) * 64..][..cycles];
+                    let mut carry = 0;
+                    for ((p, &z), &d) in cross.iter_mut().zip(&first).zip(ex) {
+                        let (next, n) = full_add(z, d, carry);
+                        carry = n;
+                        p[c] = Rows::from_lanes([z, next]);
+                    }
+                }
+                sc.cross_row[b * G + c] = py + ROWS;
+            }
+            st.cross = cross;
+            st.step = step;
+            self.run_block(st, cmd.window, cmd.sink, block);
+        } else {
+            self.run_block(st, cmd.window, cmd.sink, block);
+        }
+    }
+
     /// One block through the sink's micro-cycles.
     #[inline(always)]
-    fn run_block<const G: usize, const CROSS: bool>(
+    fn run_block<const G: usize, const N: usize, const CROSS: bool>(
         &mut self,
-        mut st: BlockStream<'_, G, CROSS>,
+        mut st: BlockStream<'_, G, N, CROSS>,
         window: Window,
         sink: QeeSink,
-        block: Block<G>,
+        block: Block<N>,
     ) {
         let (shift, cycles) = (window.shift as usize, window.delivered_bits() as usize);
         match sink {
             QeeSink::Sign { dst, combine } => {
                 // Only the window's top bit is used; the micro-cycles below it only carry.
                 st.run(0, cycles - 1, |_, _| {});
-                let mut last = [Rows::default(); G];
-                st.run(cycles - 1, cycles, |_, v| last = v);
-                self.combine_words(dst, combine, block, last.map(|v| !v));
+                let mut last = [[0u64; ROWS]; N];
+                st.run(cycles - 1, cycles, |_, v| last = v.map(Rows::lanes));
+                self.combine_words(dst, combine, block, last.map(|w| w.map(|v| !v)));
             }
             QeeSink::Store { dst } => {
                 st.run(0, shift, |_, _| {});
                 st.run(shift, cycles, |j, v| {
+                    let v = v.map(Rows::lanes);
                     self.for_words(dst, (j - shift) as u32, block, |c, r, p| {
-                        *p = gated(*p, block.en[c].0[r], v[c].0[r])
+                        *p = gated(*p, block.en[c][r], v[c][r])
                     });
                 });
             }
             QeeSink::Add { dst } => {
                 st.run(0, shift, |_, _| {});
-                let mut carry = [Rows::default(); G];
+                let mut carry = [[0u64; ROWS]; N];
                 st.run(shift, cycles, |j, v| {
+                    let v = v.map(Rows::lanes);
                     self.for_words(dst, (j - shift) as u32, block, |c, r, p| {
-                        let (sum, n) = full_add(*p, v[c].0[r], carry[c].0[r]);
-                        carry[c].0[r] = n;
-                        *p = gated(*p, block.en[c].0[r], sum);
+                        let (sum, n) = full_add(*p, v[c][r], carry[c][r]);
+                        carry[c][r] = n;
+                        *p = gated(*p, block.en[c][r], sum);
                     });
                 });
             }
@@ -571,29 +619,30 @@ impl BitEngine {
             } => {
                 st.run(0, shift, |_, _| {});
                 // V - field = V + !field + 1 through the ALU, on bits + 1 bits.
-                let mut carry = [Rows::splat(u64::MAX); G];
-                let mut differs = [Rows::default(); G];
-                let mut last = [Rows::default(); G];
+                let mut carry = [[u64::MAX; ROWS]; N];
+                let mut differs = [[0u64; ROWS]; N];
+                let mut last = [[0u64; ROWS]; N];
                 st.run(shift, cycles, |j, v| {
+                    let v = v.map(Rows::lanes);
                     let top = j == cycles - 1;
                     self.for_words(field, (j - shift) as u32, block, |c, r, p| {
-                        let (x, y, carry) = (v[c].0[r], *p, &mut carry[c].0[r]);
-                        differs[c].0[r] |= x ^ y;
+                        let (x, y, carry) = (v[c][r], *p, &mut carry[c][r]);
+                        differs[c][r] |= x ^ y;
                         let (d, n) = full_add(x, !y, *carry);
                         *carry = n;
-                        last[c].0[r] = d;
+                        last[c][r] = d;
                         if top {
                             // One more ALU cycle on the extension bits (covered by alu_setup):
                             // the difference needs bits + 1 bits to keep its sign.
                             let (ext, rext) = if field.signed { (x, y) } else { (0, 0) };
-                            last[c].0[r] = full_add(ext, !rext, *carry).0;
+                            last[c][r] = full_add(ext, !rext, *carry).0;
                         }
                     });
                 });
-                let mut value = [Rows::default(); G];
-                for c in 0..G {
+                let mut value = [[0u64; ROWS]; N];
+                for c in 0..N {
                     for r in 0..ROWS {
-                        value[c].0[r] = cmp.from_lt_eq(last[c].0[r], !differs[c].0[r]);
+                        value[c][r] = cmp.from_lt_eq(last[c][r], !differs[c][r]);
                     }
                 }
                 self.combine_words(dst, combine, block, value);
@@ -603,16 +652,16 @@ impl BitEngine {
 
     /// `f` on bit `k` of field `field` of each word of the block the command may change.
     #[inline(always)]
-    fn for_words<const G: usize>(
+    fn for_words<const N: usize>(
         &mut self,
         field: Field,
         k: u32,
-        block: Block<G>,
+        block: Block<N>,
         mut f: impl FnMut(usize, usize, &mut u64),
     ) {
         let gpr = self.geometry.groups_per_row;
         let plane = (field.offset + k) as usize * self.geometry.groups;
-        for c in 0..G {
+        for c in 0..N {
             for r in 0..ROWS {
                 if block.changes(c, r) {
                     f(
@@ -628,16 +677,17 @@ impl BitEngine {
     /// `dst := combine(dst, values)` on the block's rows. The words the command may not change
     /// are combined too: for them the combine is the identity (disabled for a gated write, or 0
     /// kept at 0), which is what leaves them out of the active list.
-    fn combine_words<const G: usize>(
+    #[allow(clippy::needless_range_loop)] // (c, r) index a block's words both ways
+    fn combine_words<const N: usize>(
         &mut self,
         dst: Bit,
         combine: LogicOp,
-        block: Block<G>,
-        values: Words<G>,
+        block: Block<N>,
+        values: [[u64; ROWS]; N],
     ) {
         let gpr = self.geometry.groups_per_row;
         for r in 0..ROWS.min(self.geometry.height - block.py) {
-            let row: [u64; G] = std::array::from_fn(|c| values[c].0[r]);
+            let row: [u64; N] = std::array::from_fn(|c| values[c][r]);
             let start = (block.py + r) * gpr + block.cx;
             self.regs.combine_run(dst, start, &row, combine);
         }
