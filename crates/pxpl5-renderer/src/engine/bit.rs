@@ -13,7 +13,7 @@
 //! two rows share one host vector register ([`wide`], portable, with the same results wherever
 //! it runs), so each operation works on 128 pixels.
 
-use super::{Geometry, PixelEngine, QeeSink, Registers, gated, transpose64};
+use super::{Geometry, PixelEngine, QeeSink, Registers, gated};
 use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
 use crate::qee::{Streams, Window};
 use wide::u64x2;
@@ -311,9 +311,41 @@ fn planes_of(values: impl Fn(usize) -> i64, mut set: impl FnMut(usize, u64)) {
     for (i, v) in m.iter_mut().enumerate() {
         *v = values(i) as u64;
     }
-    transpose64(&mut m);
+    transpose64_pairs(&mut m);
     for (j, &p) in m.iter().enumerate() {
         set(j, p);
+    }
+}
+
+/// [`super::transpose64`] two rows at a time, one host vector register per pair: the same block swaps,
+/// the last round (neighbouring rows) done across two registers' lanes.
+fn transpose64_pairs(m: &mut [u64; 64]) {
+    let mut v: [u64x2; 32] = std::array::from_fn(|k| u64x2::new([m[2 * k], m[2 * k + 1]]));
+    let mut s = 32u32;
+    let mut mask: u64 = 0x0000_0000_FFFF_FFFF;
+    while s >= 2 {
+        let (vs, mv) = (s as usize / 2, u64x2::splat(mask));
+        for k in (0..32).step_by(2 * vs) {
+            for i in k..k + vs {
+                let t = ((v[i] >> s) ^ v[i + vs]) & mv;
+                v[i] ^= t << s;
+                v[i + vs] ^= t;
+            }
+        }
+        s >>= 1;
+        mask ^= mask << s;
+    }
+    let mv = u64x2::splat(mask);
+    for k in (0..32).step_by(2) {
+        // Even rows in one register, odd rows in the other.
+        let (even, odd) = (v[k].unpack_lo(v[k + 1]), v[k].unpack_hi(v[k + 1]));
+        let t = ((even >> 1u32) ^ odd) & mv;
+        let (even, odd) = (even ^ (t << 1u32), odd ^ t);
+        v[k] = even.unpack_lo(odd);
+        v[k + 1] = even.unpack_hi(odd);
+    }
+    for (k, p) in v.iter().enumerate() {
+        [m[2 * k], m[2 * k + 1]] = p.to_array();
     }
 }
 
@@ -690,6 +722,27 @@ impl BitEngine {
             let row: [u64; N] = std::array::from_fn(|c| values[c][r]);
             let start = (block.py + r) * gpr + block.cx;
             self.regs.combine_run(dst, start, &row, combine);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::engine::transpose64;
+
+    #[test]
+    fn pairwise_transpose_matches_the_shared_one() {
+        let mut rng = pxpl5_geom::rng::Lcg::new(0x0123_4567_89AB_CDEF);
+        for _ in 0..8 {
+            let mut m = [0u64; 64];
+            for v in m.iter_mut() {
+                *v = rng.next_u64();
+            }
+            let mut expected = m;
+            transpose64(&mut expected);
+            transpose64_pairs(&mut m);
+            assert_eq!(m, expected);
         }
     }
 }
