@@ -228,3 +228,23 @@ proptest! {
         run_both(&cfg, &commands)?;
     }
 }
+
+/// A board whose rows hold four groups and whose height is odd: the bit level's blocks of rows
+/// and group columns meet the array's edges.
+fn wide_odd() -> RendererConfig {
+    let mut c = small();
+    c.width = 256;
+    c.height = 7;
+    c
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+
+    #[test]
+    fn bit_and_integer_agree_on_a_wide_board_of_odd_height(
+        commands in prop::collection::vec(command(), 1..30)
+    ) {
+        run_both(&wide_odd(), &commands)?;
+    }
+}

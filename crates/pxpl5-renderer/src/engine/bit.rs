@@ -4,13 +4,19 @@
 //!
 //! The QEE's three streams (x-tree, y-tree, cross stage; see [`crate::qee`]) arrive one bit-plane
 //! per cycle, least significant bit first, and each pixel adds them with two serial adders before
-//! its ALU consumes the sum. A group of 64 pixels is carried through all of a command's
-//! micro-cycles before the next group (the groups are independent, so the order of the loops
-//! changes nothing but the host's cache use).
+//! its ALU consumes the sum. The host runs a QEE command on *blocks* of words, two rows by one or
+//! more groups, each block through all of the command's micro-cycles before the next, with the
+//! carries of its adders in registers and one loop per kind of result (the blocks are
+//! independent, so their order changes nothing but the host's work). The x-tree's planes are
+//! built once per command; the cross stage's planes Z(x, y) = (E y) x move from row to row by the
+//! tree's own recurrence, Z(x, y + 2) = Z(x, y) + 2 E x, one bit-sliced add per plane. A block's
+//! two rows share one host vector register ([`wide`], portable, with the same results wherever
+//! it runs), so each operation works on 128 pixels.
 
-use super::{Geometry, PixelEngine, QeeSink, Registers, gated, transpose64};
+use super::{Geometry, PixelEngine, QeeSink, Registers, gated};
 use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
 use crate::qee::{Streams, Window};
+use wide::u64x2;
 
 /// Bit-plane pixel memory and the shared one-bit registers.
 pub struct BitEngine {
@@ -18,6 +24,7 @@ pub struct BitEngine {
     /// `memory_bits` planes of `geometry.groups` u64s (one per group), plane-major.
     planes: Vec<u64>,
     regs: Registers,
+    scratch: Scratch,
 }
 
 /// Full-adder sum and carry on 64 pixels.
@@ -33,6 +40,7 @@ impl BitEngine {
             geometry,
             planes: vec![0; memory_bits as usize * geometry.groups],
             regs: Registers::new(geometry, flag_count),
+            scratch: Scratch::default(),
         }
     }
 
@@ -54,20 +62,6 @@ impl BitEngine {
         let p = &mut self.planes[(f.offset + k) as usize * self.geometry.groups + g];
         *p = gated(*p, en, v);
     }
-
-    /// The 64 planes of the x-tree stream for each group position `cg` along a row.
-    fn column_planes(&self, s: &Streams) -> Vec<[u64; 64]> {
-        (0..self.geometry.groups_per_row)
-            .map(|cg| {
-                let mut m = [0u64; 64];
-                for (i, v) in m.iter_mut().enumerate() {
-                    *v = s.col[cg * 64 + i] as u64;
-                }
-                transpose64(&mut m);
-                m
-            })
-            .collect()
-    }
 }
 
 impl PixelEngine for BitEngine {
@@ -80,88 +74,11 @@ impl PixelEngine for BitEngine {
     }
 
     fn qee(&mut self, s: &Streams, window: Window, sink: QeeSink, active: &[u32]) {
-        let cols = self.column_planes(s);
-        let cycles = window.delivered_bits();
-        // The cross stage's stream (E y) x = (E y) x0 + (E y) i for column i of a 64-pixel group
-        // starting at x0: its planes of (E y) i are the same for every group of a row, so they
-        // are built once per row, and (E y) x0 enters with the row stream (the same integer sum,
-        // so the same bits).
-        let mut cross = [0u64; 64];
-        let mut cross_row = usize::MAX;
-        for &g in active {
-            let g = g as usize;
-            let (py, px0) = self.geometry.group_origin(g);
-            let col = &cols[px0 / 64];
-            let mut row = s.row[py] as u64;
-            if s.cross {
-                if cross_row != py {
-                    for (i, v) in cross.iter_mut().enumerate() {
-                        *v = (s.e_row[py] * i as i64) as u64;
-                    }
-                    transpose64(&mut cross);
-                    cross_row = py;
-                }
-                row = row.wrapping_add((s.e_row[py] * (s.origin_x + px0 as i64)) as u64);
-            }
-            let en = self.regs.enable[g];
-            // Carries of the pixels' two stream adders and of the ALU.
-            let (mut c1, mut c2) = (0u64, 0u64);
-            let mut alu_carry = match sink {
-                // lhs - rhs = lhs + !rhs + 1.
-                QeeSink::Compare { .. } => u64::MAX,
-                _ => 0,
-            };
-            let mut differs = 0u64;
-            let mut last = 0u64;
-            for j in 0..cycles {
-                let row_bit = ((row >> j) & 1).wrapping_neg();
-                let (s1, n1) = full_add(col[j as usize], row_bit, c1);
-                c1 = n1;
-                let v = if s.cross {
-                    let (s2, n2) = full_add(s1, cross[j as usize], c2);
-                    c2 = n2;
-                    s2
-                } else {
-                    s1
-                };
-                if j < window.shift {
-                    continue;
-                }
-                let k = j - window.shift;
-                match sink {
-                    QeeSink::Sign { .. } => last = v,
-                    QeeSink::Store { dst } => self.write(dst, k, g, v, en),
-                    QeeSink::Add { dst } => {
-                        let (sum, c) = full_add(self.bit(dst, k, g), v, alu_carry);
-                        alu_carry = c;
-                        self.write(dst, k, g, sum, en);
-                    }
-                    QeeSink::Compare { field, .. } => {
-                        let r = self.bit(field, k, g);
-                        let (d, c) = full_add(v, !r, alu_carry);
-                        alu_carry = c;
-                        differs |= v ^ r;
-                        last = d;
-                        if k == window.bits - 1 {
-                            // One more ALU cycle on the extension bits (covered by alu_setup):
-                            // the difference needs bits + 1 bits to keep its sign.
-                            let ext = if field.signed { v } else { 0 };
-                            let rext = if field.signed { r } else { 0 };
-                            let (d, _) = full_add(ext, !rext, alu_carry);
-                            last = d;
-                        }
-                    }
-                }
-            }
-            match sink {
-                QeeSink::Sign { dst, combine } => self.regs.combine(dst, g, !last, combine),
-                QeeSink::Compare {
-                    cmp, dst, combine, ..
-                } => self
-                    .regs
-                    .combine(dst, g, cmp.from_lt_eq(last, !differs), combine),
-                QeeSink::Store { .. } | QeeSink::Add { .. } => {}
-            }
+        // Blocks as wide as the row allows, up to four groups.
+        match self.geometry.groups_per_row {
+            n if n % 4 == 0 => self.qee_blocks::<4>(s, window, sink, active),
+            n if n % 2 == 0 => self.qee_blocks::<2>(s, window, sink, active),
+            _ => self.qee_blocks::<1>(s, window, sink, active),
         }
     }
 
@@ -297,5 +214,535 @@ impl PixelEngine for BitEngine {
             }
         }
         out
+    }
+}
+
+/// Rows per block: the rows of a block share the x-tree's planes and the step of the cross
+/// stage, and each has its own row stream, so a block's rows fill a host vector register.
+const ROWS: usize = 2;
+
+/// One word of each row of a block (the same group column), side by side in one host vector
+/// register: every operation on it is one instruction for both rows.
+#[derive(Clone, Copy, Default, PartialEq, Eq)]
+struct Rows(u64x2);
+
+impl Rows {
+    #[inline(always)]
+    fn splat(v: u64) -> Rows {
+        Rows(u64x2::splat(v))
+    }
+
+    #[inline(always)]
+    fn from_lanes(v: [u64; ROWS]) -> Rows {
+        Rows(u64x2::new(v))
+    }
+
+    #[inline(always)]
+    fn lanes(self) -> [u64; ROWS] {
+        self.0.to_array()
+    }
+}
+
+impl std::ops::BitAnd for Rows {
+    type Output = Rows;
+    #[inline(always)]
+    fn bitand(self, o: Rows) -> Rows {
+        Rows(self.0 & o.0)
+    }
+}
+
+impl std::ops::BitOr for Rows {
+    type Output = Rows;
+    #[inline(always)]
+    fn bitor(self, o: Rows) -> Rows {
+        Rows(self.0 | o.0)
+    }
+}
+
+impl std::ops::BitXor for Rows {
+    type Output = Rows;
+    #[inline(always)]
+    fn bitxor(self, o: Rows) -> Rows {
+        Rows(self.0 ^ o.0)
+    }
+}
+
+/// A full adder on both rows of a block: `a + b + carry`, the carry updated in place.
+#[inline(always)]
+fn add_rows(a: Rows, b: Rows, carry: &mut Rows) -> Rows {
+    let t = a ^ b;
+    let s = t ^ *carry;
+    *carry = (a & b) | (*carry & t);
+    s
+}
+
+/// A block's words: `G` group columns of [`ROWS`] rows.
+type Words<const G: usize> = [Rows; G];
+
+/// Buffers a QEE command reuses, so that a command allocates nothing. Planes are kept per
+/// *block column* (`G` consecutive group columns): plane `j` of block column `b` is entry
+/// `b * 64 + j` of the slice's `G`-chunks. The x-tree's planes and the cross stage's steps are
+/// the same for every row, so they are kept splatted across a block's rows, ready to use.
+#[derive(Default)]
+struct Scratch {
+    /// The x-tree's planes, X(x) = A x + D x^2.
+    col: Vec<Rows>,
+    /// The cross stage's planes, Z(x, y) = (E y) x, for the rows from `cross_row`.
+    cross: Vec<Rows>,
+    /// The planes of E x, group column c's plane j at `c * 64 + j`: Z's step from a row to the next.
+    ex: Vec<u64>,
+    /// Z's step from one block of rows to the next, Z(x, y + ROWS) - Z(x, y) = ROWS E x.
+    step: Vec<Rows>,
+    /// The first row whose Z `cross` holds, per group column (`usize::MAX`: none yet).
+    cross_row: Vec<usize>,
+    /// Which groups of the current block of rows the command may change (row-major).
+    lanes: Vec<bool>,
+}
+
+/// How many blocks of rows a group column's cross planes may be stepped forward instead of being
+/// built afresh (a step is one bit-sliced add per plane; a fresh build a 64 x 64 transpose and an
+/// add, which cost about as much as this many steps).
+const MAX_STEPS: usize = 4;
+
+/// The 64 bit-planes of `values(i)` for the pixels i = 0..64 of a group, plane j into
+/// `set(j, plane)`.
+fn planes_of(values: impl Fn(usize) -> i64, mut set: impl FnMut(usize, u64)) {
+    let mut m = [0u64; 64];
+    for (i, v) in m.iter_mut().enumerate() {
+        *v = values(i) as u64;
+    }
+    transpose64_pairs(&mut m);
+    for (j, &p) in m.iter().enumerate() {
+        set(j, p);
+    }
+}
+
+/// [`super::transpose64`] two rows at a time, one host vector register per pair: the same block swaps,
+/// the last round (neighbouring rows) done across two registers' lanes.
+fn transpose64_pairs(m: &mut [u64; 64]) {
+    let mut v: [u64x2; 32] = std::array::from_fn(|k| u64x2::new([m[2 * k], m[2 * k + 1]]));
+    let mut s = 32u32;
+    let mut mask: u64 = 0x0000_0000_FFFF_FFFF;
+    while s >= 2 {
+        let (vs, mv) = (s as usize / 2, u64x2::splat(mask));
+        for k in (0..32).step_by(2 * vs) {
+            for i in k..k + vs {
+                let t = ((v[i] >> s) ^ v[i + vs]) & mv;
+                v[i] ^= t << s;
+                v[i + vs] ^= t;
+            }
+        }
+        s >>= 1;
+        mask ^= mask << s;
+    }
+    let mv = u64x2::splat(mask);
+    for k in (0..32).step_by(2) {
+        // Even rows in one register, odd rows in the other.
+        let (even, odd) = (v[k].unpack_lo(v[k + 1]), v[k].unpack_hi(v[k + 1]));
+        let t = ((even >> 1u32) ^ odd) & mv;
+        let (even, odd) = (even ^ (t << 1u32), odd ^ t);
+        v[k] = even.unpack_lo(odd);
+        v[k + 1] = even.unpack_hi(odd);
+    }
+    for (k, p) in v.iter().enumerate() {
+        [m[2 * k], m[2 * k + 1]] = p.to_array();
+    }
+}
+
+/// The tree's streams into `N` of the `G` group columns of a block column, from column `c0`,
+/// and the carries of the pixels' two stream adders.
+struct BlockStream<'a, const G: usize, const N: usize, const CROSS: bool> {
+    /// The x-tree's planes of the block's group columns.
+    col: &'a [Words<G>],
+    /// The cross stage's planes for the block's rows, advanced in place to the next block of
+    /// rows as they are used.
+    cross: &'a mut [Words<G>],
+    step: &'a [Words<G>],
+    c0: usize,
+    /// Y(y) of each row: bit j goes to every pixel of the row at micro-cycle j.
+    rows: [u64; ROWS],
+    /// Carries of the x + y adder, the (x + y) + z adder, and the cross stage's row step.
+    c1: Words<N>,
+    c2: Words<N>,
+    c_step: Words<N>,
+}
+
+impl<'a, const G: usize, const N: usize, const CROSS: bool> BlockStream<'a, G, N, CROSS> {
+    /// Micro-cycles `from .. to`, each one's bit of every pixel's V handed to `f` with its
+    /// cycle number.
+    #[inline(always)]
+    fn run(&mut self, from: usize, to: usize, mut f: impl FnMut(usize, Words<N>)) {
+        // Bit j of each row's stream, spread over the row's word: 0 - ((y >> j) & 1).
+        let mut rest = u64x2::new(self.rows.map(|y| y.checked_shr(from as u32).unwrap_or(0)));
+        let (zero, one) = (u64x2::splat(0), u64x2::splat(1));
+        let mut row_bits = || {
+            let bits = Rows(zero - (rest & one));
+            rest >>= 1;
+            bits
+        };
+        let c0 = self.c0;
+        let col = &self.col[from..to];
+        if CROSS {
+            let planes = col
+                .iter()
+                .zip(&mut self.cross[from..to])
+                .zip(&self.step[from..to]);
+            for (j, ((x, z), d)) in (from..).zip(planes) {
+                let y = row_bits();
+                let mut v = [Rows::default(); N];
+                for c in 0..N {
+                    let s1 = add_rows(x[c0 + c], y, &mut self.c1[c]);
+                    let zc = z[c0 + c];
+                    // The cross stage moves on to the next rows while these are consumed:
+                    // Z(x, y + ROWS) = Z(x, y) + ROWS E x, one plane per cycle with its carry.
+                    z[c0 + c] = add_rows(zc, d[c0 + c], &mut self.c_step[c]);
+                    v[c] = add_rows(s1, zc, &mut self.c2[c]);
+                }
+                f(j, v);
+            }
+        } else {
+            for (j, x) in (from..).zip(col) {
+                let y = row_bits();
+                let mut v = [Rows::default(); N];
+                for c in 0..N {
+                    v[c] = add_rows(x[c0 + c], y, &mut self.c1[c]);
+                }
+                f(j, v);
+            }
+        }
+    }
+}
+
+/// One block's place: its first row and group column, the words the command may change (bit
+/// `c * ROWS + r` for column c, row r), their enables (0 where it may not).
+#[derive(Clone, Copy)]
+struct Block<const N: usize> {
+    py: usize,
+    cx: usize,
+    lanes: u32,
+    en: [[u64; ROWS]; N],
+}
+
+impl<const N: usize> Block<N> {
+    #[inline(always)]
+    fn changes(&self, c: usize, r: usize) -> bool {
+        self.lanes >> (c * ROWS + r) & 1 != 0
+    }
+}
+
+/// One QEE command's streams as bit-planes, and what it does, for [`BitEngine::qee_block`].
+struct QeeCommand<'a> {
+    s: &'a Streams,
+    window: Window,
+    sink: QeeSink,
+}
+
+impl BitEngine {
+    /// The QEE command on blocks of [`ROWS`] rows by `G` groups: every block runs all its
+    /// micro-cycles with its carries in registers before the next block.
+    fn qee_blocks<const G: usize>(
+        &mut self,
+        s: &Streams,
+        window: Window,
+        sink: QeeSink,
+        active: &[u32],
+    ) {
+        if s.cross {
+            self.qee_run::<G, true>(s, window, sink, active)
+        } else {
+            self.qee_run::<G, false>(s, window, sink, active)
+        }
+    }
+
+    fn qee_run<const G: usize, const CROSS: bool>(
+        &mut self,
+        s: &Streams,
+        window: Window,
+        sink: QeeSink,
+        active: &[u32],
+    ) {
+        let gpr = self.geometry.groups_per_row;
+        let mut sc = std::mem::take(&mut self.scratch);
+        // Group column c's plane j at entry (c / G * 64 + j) * G + c % G.
+        let at = |c: usize, j: usize| (c / G * 64 + j) * G + c % G;
+        sc.col.resize(64 * gpr, Rows::default());
+        for c in 0..gpr {
+            planes_of(
+                |i| s.col[c * 64 + i],
+                |j, p| sc.col[at(c, j)] = Rows::splat(p),
+            );
+        }
+        if CROSS {
+            sc.cross.resize(64 * gpr, Rows::default());
+            sc.ex.resize(64 * gpr, 0);
+            sc.step.resize(64 * gpr, Rows::default());
+            sc.cross_row.clear();
+            sc.cross_row.resize(gpr, usize::MAX);
+            for c in 0..gpr {
+                let x = |i: usize| s.origin_x + (c * 64 + i) as i64;
+                planes_of(|i| s.expr.e * x(i), |j, p| sc.ex[c * 64 + j] = p);
+                // ROWS E x = (E x) << 1: plane j is E x's plane j - 1.
+                const { assert!(ROWS == 2) };
+                sc.step[at(c, 0)] = Rows::default();
+                for j in 1..64 {
+                    sc.step[at(c, j)] = Rows::splat(sc.ex[c * 64 + j - 1]);
+                }
+            }
+        }
+        sc.lanes.clear();
+        sc.lanes.resize(ROWS * gpr, false);
+        let cmd = QeeCommand { s, window, sink };
+        let mut i = 0;
+        while i < active.len() {
+            // The active groups of the next block of rows.
+            let py = active[i] as usize / gpr / ROWS * ROWS;
+            let first = i;
+            while i < active.len() && (active[i] as usize) < (py + ROWS) * gpr {
+                sc.lanes[active[i] as usize - py * gpr] = true;
+                i += 1;
+            }
+            for b in 0..gpr / G {
+                // Which of the block column's group columns have a word to change.
+                let mut used = 0u32;
+                for c in 0..G {
+                    for r in 0..ROWS {
+                        if sc.lanes[r * gpr + b * G + c] {
+                            used |= 1 << c;
+                        }
+                    }
+                }
+                // Every column when most are used; else each used column alone.
+                if used.count_ones() as usize * 2 > G {
+                    self.qee_block::<G, G, CROSS>(&cmd, &mut sc, py, b, 0);
+                } else {
+                    for c0 in 0..G {
+                        if used >> c0 & 1 != 0 {
+                            self.qee_block::<G, 1, CROSS>(&cmd, &mut sc, py, b, c0);
+                        }
+                    }
+                }
+            }
+            for &g in &active[first..i] {
+                sc.lanes[g as usize - py * gpr] = false;
+            }
+        }
+        self.scratch = sc;
+    }
+
+    /// The `N` group columns from `c0` of block column `b`, rows `py ..`.
+    #[inline(always)]
+    #[allow(clippy::needless_range_loop)] // (c, r) index a block's words both ways
+    fn qee_block<const G: usize, const N: usize, const CROSS: bool>(
+        &mut self,
+        cmd: &QeeCommand,
+        sc: &mut Scratch,
+        py: usize,
+        b: usize,
+        c0: usize,
+    ) {
+        let (gpr, height) = (self.geometry.groups_per_row, self.geometry.height);
+        let cycles = cmd.window.delivered_bits() as usize;
+        let cx = b * G + c0;
+        let mut lanes = 0u32;
+        let mut en = [[0u64; ROWS]; N];
+        for c in 0..N {
+            for r in 0..ROWS {
+                if sc.lanes[r * gpr + cx + c] {
+                    lanes |= 1 << (c * ROWS + r);
+                    en[c][r] = self.regs.enable[(py + r) * gpr + cx + c];
+                }
+            }
+        }
+        let block = Block { py, cx, lanes, en };
+        // A row past the array's last (an odd height) takes the last row's stream; it has no
+        // active group, so nothing of it is written.
+        let rows = std::array::from_fn(|r| cmd.s.row[(py + r).min(height - 1)] as u64);
+        let (col, _) = sc.col[b * 64 * G..][..cycles * G].as_chunks::<G>();
+        let mut st = BlockStream::<G, N, CROSS> {
+            col,
+            cross: &mut [],
+            step: &[],
+            c0,
+            rows,
+            c1: [Rows::default(); N],
+            c2: [Rows::default(); N],
+            c_step: [Rows::default(); N],
+        };
+        if CROSS {
+            let (step, _) = sc.step[b * 64 * G..][..cycles * G].as_chunks::<G>();
+            let (cross, _) = sc.cross[b * 64 * G..][..cycles * G].as_chunks_mut::<G>();
+            for c in c0..c0 + N {
+                let from = sc.cross_row[b * G + c];
+                if from <= py && py - from <= MAX_STEPS * ROWS {
+                    // Catch up from the rows these planes hold.
+                    for _ in (from..py).step_by(ROWS) {
+                        let mut carry = Rows::default();
+                        for (p, d) in cross.iter_mut().zip(step) {
+                            p[c] = add_rows(p[c], d[c], &mut carry);
+                        }
+                    }
+                } else {
+                    // Afresh: Z of the first row, then of the next by adding E x.
+                    let px = (b * G + c) * 64;
+                    let mut first = [0u64; 64];
+                    planes_of(|i| cmd.s.cross_at(px + i, py), |j, p| first[j] = p);
+                    let ex = &sc.ex[(b * G + c) * 64..][..cycles];
+                    let mut carry = 0;
+                    for ((p, &z), &d) in cross.iter_mut().zip(&first).zip(ex) {
+                        let (next, n) = full_add(z, d, carry);
+                        carry = n;
+                        p[c] = Rows::from_lanes([z, next]);
+                    }
+                }
+                sc.cross_row[b * G + c] = py + ROWS;
+            }
+            st.cross = cross;
+            st.step = step;
+            self.run_block(st, cmd.window, cmd.sink, block);
+        } else {
+            self.run_block(st, cmd.window, cmd.sink, block);
+        }
+    }
+
+    /// One block through the sink's micro-cycles.
+    #[inline(always)]
+    fn run_block<const G: usize, const N: usize, const CROSS: bool>(
+        &mut self,
+        mut st: BlockStream<'_, G, N, CROSS>,
+        window: Window,
+        sink: QeeSink,
+        block: Block<N>,
+    ) {
+        let (shift, cycles) = (window.shift as usize, window.delivered_bits() as usize);
+        match sink {
+            QeeSink::Sign { dst, combine } => {
+                // Only the window's top bit is used; the micro-cycles below it only carry.
+                st.run(0, cycles - 1, |_, _| {});
+                let mut last = [[0u64; ROWS]; N];
+                st.run(cycles - 1, cycles, |_, v| last = v.map(Rows::lanes));
+                self.combine_words(dst, combine, block, last.map(|w| w.map(|v| !v)));
+            }
+            QeeSink::Store { dst } => {
+                st.run(0, shift, |_, _| {});
+                st.run(shift, cycles, |j, v| {
+                    let v = v.map(Rows::lanes);
+                    self.for_words(dst, (j - shift) as u32, block, |c, r, p| {
+                        *p = gated(*p, block.en[c][r], v[c][r])
+                    });
+                });
+            }
+            QeeSink::Add { dst } => {
+                st.run(0, shift, |_, _| {});
+                let mut carry = [[0u64; ROWS]; N];
+                st.run(shift, cycles, |j, v| {
+                    let v = v.map(Rows::lanes);
+                    self.for_words(dst, (j - shift) as u32, block, |c, r, p| {
+                        let (sum, n) = full_add(*p, v[c][r], carry[c][r]);
+                        carry[c][r] = n;
+                        *p = gated(*p, block.en[c][r], sum);
+                    });
+                });
+            }
+            QeeSink::Compare {
+                field,
+                cmp,
+                dst,
+                combine,
+            } => {
+                st.run(0, shift, |_, _| {});
+                // V - field = V + !field + 1 through the ALU, on bits + 1 bits.
+                let mut carry = [[u64::MAX; ROWS]; N];
+                let mut differs = [[0u64; ROWS]; N];
+                let mut last = [[0u64; ROWS]; N];
+                st.run(shift, cycles, |j, v| {
+                    let v = v.map(Rows::lanes);
+                    let top = j == cycles - 1;
+                    self.for_words(field, (j - shift) as u32, block, |c, r, p| {
+                        let (x, y, carry) = (v[c][r], *p, &mut carry[c][r]);
+                        differs[c][r] |= x ^ y;
+                        let (d, n) = full_add(x, !y, *carry);
+                        *carry = n;
+                        last[c][r] = d;
+                        if top {
+                            // One more ALU cycle on the extension bits (covered by alu_setup):
+                            // the difference needs bits + 1 bits to keep its sign.
+                            let (ext, rext) = if field.signed { (x, y) } else { (0, 0) };
+                            last[c][r] = full_add(ext, !rext, *carry).0;
+                        }
+                    });
+                });
+                let mut value = [[0u64; ROWS]; N];
+                for c in 0..N {
+                    for r in 0..ROWS {
+                        value[c][r] = cmp.from_lt_eq(last[c][r], !differs[c][r]);
+                    }
+                }
+                self.combine_words(dst, combine, block, value);
+            }
+        }
+    }
+
+    /// `f` on bit `k` of field `field` of each word of the block the command may change.
+    #[inline(always)]
+    fn for_words<const N: usize>(
+        &mut self,
+        field: Field,
+        k: u32,
+        block: Block<N>,
+        mut f: impl FnMut(usize, usize, &mut u64),
+    ) {
+        let gpr = self.geometry.groups_per_row;
+        let plane = (field.offset + k) as usize * self.geometry.groups;
+        for c in 0..N {
+            for r in 0..ROWS {
+                if block.changes(c, r) {
+                    f(
+                        c,
+                        r,
+                        &mut self.planes[plane + (block.py + r) * gpr + block.cx + c],
+                    );
+                }
+            }
+        }
+    }
+
+    /// `dst := combine(dst, values)` on the block's rows. The words the command may not change
+    /// are combined too: for them the combine is the identity (disabled for a gated write, or 0
+    /// kept at 0), which is what leaves them out of the active list.
+    #[allow(clippy::needless_range_loop)] // (c, r) index a block's words both ways
+    fn combine_words<const N: usize>(
+        &mut self,
+        dst: Bit,
+        combine: LogicOp,
+        block: Block<N>,
+        values: [[u64; ROWS]; N],
+    ) {
+        let gpr = self.geometry.groups_per_row;
+        for r in 0..ROWS.min(self.geometry.height - block.py) {
+            let row: [u64; N] = std::array::from_fn(|c| values[c][r]);
+            let start = (block.py + r) * gpr + block.cx;
+            self.regs.combine_run(dst, start, &row, combine);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::engine::transpose64;
+
+    #[test]
+    fn pairwise_transpose_matches_the_shared_one() {
+        let mut rng = pxpl5_geom::rng::Lcg::new(0x0123_4567_89AB_CDEF);
+        for _ in 0..8 {
+            let mut m = [0u64; 64];
+            for v in m.iter_mut() {
+                *v = rng.next_u64();
+            }
+            let mut expected = m;
+            transpose64(&mut expected);
+            transpose64_pairs(&mut m);
+            assert_eq!(m, expected);
+        }
     }
 }
