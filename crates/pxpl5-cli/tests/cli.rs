@@ -1,6 +1,7 @@
 //! The `pxpl5` command as a user runs it: exit codes, messages naming file, line and field, and
 //! the benchmark's agreement between fidelity levels.
 
+use std::collections::BTreeSet;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
@@ -1950,4 +1951,58 @@ fn a_ten_megabyte_line_gives_a_short_report() {
         assert!(out.stderr.len() < 5_000, "{} bytes", out.stderr.len());
         assert!(text(&out.stderr).contains("unknown field"));
     }
+}
+
+#[test]
+fn a_pftrace_is_perfetto_protobuf_streamed_to_its_file_or_a_device_and_nothing_on_failure() {
+    let d = out_dir("pftrace");
+    let file = d.join("deep/t.pftrace");
+    let out = run_small_with(&d.join("out"), &["--trace", file.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let bytes = std::fs::read(&file).unwrap();
+    let packets = pxpl5_trace::read_packets(&bytes).expect("a Perfetto trace");
+    let tracks: BTreeSet<String> = packets
+        .iter()
+        .filter_map(|p| p.track_descriptor.as_ref()?.name.clone())
+        .collect();
+    assert!(
+        tracks.contains("GP 0") && tracks.contains("Ring channel 0"),
+        "{tracks:?}"
+    );
+    assert!(packets.iter().filter(|p| p.track_event.is_some()).count() > 50);
+    // No temporary file is left beside it.
+    assert_eq!(std::fs::read_dir(d.join("deep")).unwrap().count(), 1);
+
+    // Through a symlink to a device (stdout, a pipe here), named .pftrace: the same bytes (a run
+    // is deterministic), written through, spooled meanwhile in the temporary directory. (`-` has
+    // no extension: it is JSON.)
+    #[cfg(unix)]
+    if Path::new("/dev/stdout").exists() {
+        let link = d.join("stdout.pftrace");
+        std::os::unix::fs::symlink("/dev/stdout", &link).unwrap();
+        let out = run_small_with(&d.join("out"), &["--trace", link.to_str().unwrap()]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        assert!(out.stdout.starts_with(&bytes), "not the same trace");
+        assert!(
+            std::fs::symlink_metadata(&link)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
+    }
+
+    // A run that fails leaves no file, no temporary file and no directory it made.
+    let failed = out_dir("pftrace-failed");
+    let out = run_small_with(
+        &failed,
+        &[
+            "--time-limit",
+            "1us",
+            "--trace",
+            failed.join("new/t.pftrace").to_str().unwrap(),
+        ],
+    );
+    no_panic(&out);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out.stderr));
+    assert!(!failed.exists(), "a failed run left {:?}", listing(&failed));
 }

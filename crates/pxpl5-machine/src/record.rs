@@ -26,7 +26,8 @@ use std::collections::{BTreeMap, VecDeque};
 use pxpl5_ring::{Delivery, MessageId, NodeId, Ring, TokenLocation};
 use pxpl5_sim::Tick;
 use pxpl5_trace::{
-    Args, ChromeTrace, FlowStep, JsonValue, SignalId, TraceWindow, TrackId, VcdTrace,
+    Args, ChromeTrace, EventTrace, FlowStep, JsonValue, PerfettoTrace, SignalId, TraceWindow,
+    TrackId, VcdTrace,
 };
 
 use crate::gp::Unit;
@@ -91,7 +92,8 @@ struct Flows {
 /// The machine's recorder.
 #[derive(Default)]
 pub struct Recorder {
-    chrome: Option<ChromeTrace>,
+    /// The event trace (`--trace`): Chrome JSON or Perfetto's format.
+    trace: Option<EventTrace>,
     vcd: Option<VcdTrace>,
     tracks: Option<Tracks>,
     signals: Option<Signals>,
@@ -129,8 +131,25 @@ fn channel_list(mask: u64, sep: &str) -> String {
 impl Recorder {
     /// A recorder that writes a Chrome trace and/or a VCD limited to their windows.
     pub fn new(chrome: Option<TraceWindow>, vcd: Option<TraceWindow>) -> Recorder {
+        Recorder::with_trace(chrome.map(|w| EventTrace::Chrome(ChromeTrace::new(w))), vcd)
+    }
+
+    /// A recorder that writes a Perfetto trace of `window` to `out` as the run goes (see
+    /// [`PerfettoTrace`]), and a VCD if `vcd` says so; [`Recorder::finish_trace`] ends it.
+    pub fn perfetto(
+        window: TraceWindow,
+        out: Box<dyn std::io::Write + Send>,
+        vcd: Option<TraceWindow>,
+    ) -> Recorder {
+        Recorder::with_trace(
+            Some(EventTrace::Perfetto(PerfettoTrace::new(window, out))),
+            vcd,
+        )
+    }
+
+    fn with_trace(trace: Option<EventTrace>, vcd: Option<TraceWindow>) -> Recorder {
         Recorder {
-            chrome: chrome.map(ChromeTrace::new),
+            trace,
             vcd: vcd.map(VcdTrace::new),
             ..Recorder::default()
         }
@@ -159,7 +178,7 @@ impl Recorder {
             readback: vec![None; renderers],
             answers: BTreeMap::new(),
         };
-        if let Some(c) = &mut self.chrome {
+        if let Some(c) = &mut self.trace {
             let mut gp_tracks = Vec::new();
             let mut phase_tracks = Vec::new();
             for g in 0..gps {
@@ -234,7 +253,7 @@ impl Recorder {
 
     pub(crate) fn gp_busy(&mut self, gp: u32, start: Tick, end: Tick, busy: Busy) {
         let g = gp as usize;
-        if let (Some(c), Some(t)) = (&mut self.chrome, &self.tracks) {
+        if let (Some(c), Some(t)) = (&mut self.trace, &self.tracks) {
             let name = match busy {
                 Busy::Compute => "compute",
                 Busy::Send => "message send",
@@ -264,7 +283,7 @@ impl Recorder {
         let &Started {
             kind, start, end, ..
         } = started;
-        if let (Some(c), Some(t)) = (&mut self.chrome, &self.tracks) {
+        if let (Some(c), Some(t)) = (&mut self.trace, &self.tracks) {
             let track = t.renderer[r as usize];
             c.slice_grouped(track, kind, start, end, self.renderer_gap);
             // The message's flow passes its first, readback and last commands: enough to see
@@ -291,7 +310,7 @@ impl Recorder {
 
     /// Message `id` left `from` (the ring took it) at `at`: its flow starts in the sender's slice.
     pub(crate) fn message_sent(&mut self, id: MessageId, from: Unit, at: Tick) {
-        let (Some(c), Some(t)) = (&mut self.chrome, &self.tracks) else {
+        let (Some(c), Some(t)) = (&mut self.trace, &self.tracks) else {
             return;
         };
         match from {
@@ -328,7 +347,7 @@ impl Recorder {
 
     /// Message `id` was handed to GP `gp`'s mailbox: its next receive takes it.
     pub(crate) fn handed_to_gp(&mut self, gp: u32, id: MessageId) {
-        if self.chrome.is_some()
+        if self.trace.is_some()
             && let Some(inbox) = self.flows.gp_inbox.get_mut(gp as usize)
         {
             inbox.push_back(id);
@@ -336,7 +355,7 @@ impl Recorder {
     }
 
     pub(crate) fn message_delivered(&mut self, d: &Delivery, from: Unit, to: Unit) {
-        let (Some(c), Some(t)) = (&mut self.chrome, &mut self.tracks) else {
+        let (Some(c), Some(t)) = (&mut self.trace, &mut self.tracks) else {
             return;
         };
         let (sent, delivered) = (d.sent, d.delivered);
@@ -383,10 +402,10 @@ impl Recorder {
     }
 
     pub(crate) fn ring_sample(&mut self, now: Tick, ring: &Ring) {
-        if self.chrome.is_none() && self.vcd.is_none() {
+        if self.trace.is_none() && self.vcd.is_none() {
             return;
         }
-        if let Some(c) = &mut self.chrome {
+        if let Some(c) = &mut self.trace {
             let cap = self.queue_capacity;
             for (i, unit) in self.units.iter().enumerate() {
                 let node = NodeId(i as u32);
@@ -420,7 +439,7 @@ impl Recorder {
                 None => (u32::MAX, false),
             };
             let (was_held, was_at) = self.token[ch];
-            if let Some(c) = &mut self.chrome
+            if let Some(c) = &mut self.trace
                 && held != was_held
                 && ch < 64
             {
@@ -492,7 +511,7 @@ impl Recorder {
 
     pub(crate) fn close(&mut self, end: Tick) {
         let spans = self.gp_phases(end);
-        if let (Some(c), Some(t)) = (&mut self.chrome, &self.tracks) {
+        if let (Some(c), Some(t)) = (&mut self.trace, &self.tracks) {
             for p in spans {
                 c.slice(
                     t.gp_phase[p.gp as usize],
@@ -511,9 +530,18 @@ impl Recorder {
 
     /// Write the Chrome trace, if one was asked for.
     pub fn write_chrome(&self, w: impl std::io::Write) -> std::io::Result<bool> {
-        match &self.chrome {
-            Some(c) => c.write(w).map(|_| true),
-            None => Ok(false),
+        match &self.trace {
+            Some(EventTrace::Chrome(c)) => c.write(w).map(|_| true),
+            _ => Ok(false),
+        }
+    }
+
+    /// End the Perfetto trace, if one was asked for: write what it still holds and flush its
+    /// writer. Returns whether there was one, or its first write error.
+    pub fn finish_trace(&mut self) -> std::io::Result<bool> {
+        match &mut self.trace {
+            Some(EventTrace::Perfetto(p)) => p.finish().map(|()| true),
+            _ => Ok(false),
         }
     }
 
