@@ -311,3 +311,65 @@ fn perfetto_trace_holds_the_json_trace_and_is_five_times_smaller() {
         json.len()
     );
 }
+
+#[test]
+fn the_critical_path_track_sums_to_the_stats_critical_path() {
+    let run = run(Recorder::new(Some(TraceWindow::all()), None));
+    let mut json = Vec::new();
+    assert!(run.recorder.write_chrome(&mut json).unwrap());
+    let doc: Value = serde_json::from_slice(&json).unwrap();
+    let events = doc["traceEvents"].as_array().unwrap();
+    let pid = events
+        .iter()
+        .find(|e| e["name"] == "process_name" && e["args"]["name"] == "Critical path")
+        .expect("a critical-path process")["pid"]
+        .clone();
+    let mut segments: Vec<(u64, u64, String, String)> = events
+        .iter()
+        .filter(|e| e["pid"] == pid && e["ph"] == "X")
+        .map(|e| {
+            let start = json_ps(&e["ts"]);
+            (
+                start,
+                start + json_ps(&e["dur"]),
+                e["name"].as_str().unwrap().to_owned(),
+                e["args"]["category"].as_str().unwrap().to_owned(),
+            )
+        })
+        .collect();
+    segments.sort();
+    assert!(segments.len() > 10, "{segments:?}");
+    // End to end from 0: at every instant one unit holds the path.
+    assert_eq!(segments[0].0, 0);
+    for w in segments.windows(2) {
+        assert_eq!(
+            w[0].1, w[1].0,
+            "a gap or overlap at {:?} / {:?}",
+            w[0], w[1]
+        );
+    }
+    // It ends when the last unit to finish did (the run's end may come later: a last message
+    // to the frame buffer or the host).
+    let path_end: u64 = run.stats.critical_path.iter().map(|p| p.time.0).sum();
+    assert_eq!(segments.last().unwrap().1, path_end);
+    assert!(path_end <= run.stats.end.0);
+    // Per category, exactly the stats' figures.
+    let mut sums: BTreeMap<String, u64> = BTreeMap::new();
+    for (start, end, _, category) in &segments {
+        *sums.entry(category.clone()).or_default() += end - start;
+    }
+    let stats: BTreeMap<String, u64> = run
+        .stats
+        .critical_path
+        .iter()
+        .map(|p| (p.activity.clone(), p.time.0))
+        .collect();
+    assert_eq!(sums, stats);
+    // Names say which unit: GP and Renderer work is named by its unit.
+    assert!(
+        segments
+            .iter()
+            .any(|s| s.2.starts_with("GP ") && s.2.contains(": ")),
+        "{segments:?}"
+    );
+}

@@ -1,7 +1,10 @@
 //! What the machine records as it runs: program phase marks (always, for the stats) and, on
 //! request, Chrome trace and VCD events in simulated time.
 //!
-//! Tracks (Chrome trace): per GP its phases (named as in the stats' `phases`) and its busy time,
+//! Tracks (Chrome trace, or Perfetto's format): first, process `Critical path`, whose track
+//! `unit and activity` shows over simulated time which unit, doing what, held the run's critical
+//! path (the stats' `critical_path` attribution, segment by segment: its slices' lengths per
+//! category sum to the stats' figures; see `critical`); per GP its phases (named as in the stats' `phases`) and its busy time,
 //! as `compute`, `message send` and `message receive` slices (the stats' critical-path
 //! categories); per Renderer its commands, grouped into runs of back-to-back commands of one kind
 //! (there are too many to show one by one); per ring channel a process `Ring channel C` whose
@@ -30,6 +33,7 @@ use pxpl5_trace::{
     TrackId, VcdTrace,
 };
 
+use crate::critical::PathSegment;
 use crate::gp::Unit;
 use crate::gp_node::Busy;
 use crate::renderer_node::Started;
@@ -39,6 +43,7 @@ use crate::stats::PhaseSpan;
 const FLOW: &str = "message";
 
 struct Tracks {
+    critical: TrackId,
     gp: Vec<TrackId>,
     gp_phase: Vec<TrackId>,
     renderer: Vec<TrackId>,
@@ -179,6 +184,7 @@ impl Recorder {
             answers: BTreeMap::new(),
         };
         if let Some(c) = &mut self.trace {
+            let critical = c.track("Critical path", "unit and activity");
             let mut gp_tracks = Vec::new();
             let mut phase_tracks = Vec::new();
             for g in 0..gps {
@@ -203,6 +209,7 @@ impl Recorder {
                 units.iter().map(|u| u.to_string()).collect::<Vec<_>>(),
             );
             self.tracks = Some(Tracks {
+                critical,
                 gp: gp_tracks,
                 gp_phase: phase_tracks,
                 renderer,
@@ -507,6 +514,42 @@ impl Recorder {
             }
         }
         spans
+    }
+
+    /// Whether an event trace is recorded (then the machine keeps its critical paths' segments).
+    pub(crate) fn traces_events(&self) -> bool {
+        self.trace.is_some()
+    }
+
+    /// Draws the run's critical path, `segments` in time order, on its track: each slice is named
+    /// by its unit and activity (`GP 0: transform`, `ring transfer`, `Renderer 3: qee`, `GP 2:
+    /// waits for ring queue space`), with
+    /// args `category` (the stats' name), `resource` and `unit`.
+    pub(crate) fn critical_path(&mut self, segments: &[PathSegment]) {
+        let (Some(c), Some(t)) = (&mut self.trace, &self.tracks) else {
+            return;
+        };
+        for s in segments {
+            // Categories start with the kind of unit they are of: `GP transform` done by GP 0
+            // is `GP 0: transform`.
+            let kind = match s.unit {
+                Some(Unit::Gp(_)) => "GP ",
+                Some(Unit::Renderer(_)) => "Renderer ",
+                _ => "",
+            };
+            let name = match (s.unit, s.activity.strip_prefix(kind)) {
+                (Some(unit), Some(rest)) if !kind.is_empty() => format!("{unit}: {rest}"),
+                _ => s.activity.clone(),
+            };
+            let mut args = vec![
+                ("category", JsonValue::from(s.activity.as_str())),
+                ("resource", JsonValue::from(s.resource.name())),
+            ];
+            if let Some(unit) = s.unit {
+                args.push(("unit", JsonValue::from(unit.to_string())));
+            }
+            c.slice(t.critical, &name, s.start, s.end, args);
+        }
     }
 
     pub(crate) fn close(&mut self, end: Tick) {
