@@ -2006,3 +2006,93 @@ fn a_pftrace_is_perfetto_protobuf_streamed_to_its_file_or_a_device_and_nothing_o
     assert_eq!(out.status.code(), Some(1), "{}", text(&out.stderr));
     assert!(!failed.exists(), "a failed run left {:?}", listing(&failed));
 }
+
+/// The row labels of a timeline SVG, top to bottom (the label column's texts).
+fn timeline_rows(svg: &str) -> Vec<String> {
+    let mut rows = Vec::new();
+    let mut rest = svg;
+    while let Some(at) = rest.find("<text x=\"4\"") {
+        rest = &rest[at..];
+        let body = &rest[rest.find('>').unwrap() + 1..rest.find("</text>").unwrap()];
+        rows.push(body.trim().to_owned());
+        rest = &rest[1..];
+    }
+    rows
+}
+
+#[test]
+fn trace_timeline_draws_a_row_per_track_with_the_critical_path_on_top() {
+    let d = out_dir("timeline");
+    std::fs::create_dir_all(&d).unwrap();
+    let (json, pf) = (d.join("t.json"), d.join("t.pftrace"));
+    for trace in [&json, &pf] {
+        let out = run_small_with(&d.join("out"), &["--trace", trace.to_str().unwrap()]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+    }
+    for trace in [&json, &pf] {
+        let out = pxpl5(&["trace", "timeline", trace.to_str().unwrap()]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        let svg = std::fs::read_to_string(trace.with_extension("svg")).unwrap();
+        assert!(svg.starts_with("<svg"), "{trace:?}");
+        let rows = timeline_rows(&svg);
+        assert_eq!(rows[0], "critical path", "{rows:?}");
+        for want in [
+            "GP 0",
+            "GP 0 phases",
+            "Renderer 0",
+            "Ring channel 0 / lane 0",
+        ] {
+            assert!(rows.iter().any(|r| r == want), "no row {want}: {rows:?}");
+        }
+        assert!(svg.contains("critical path, by category"), "a legend");
+        assert!(svg.matches("<rect").count() > 20);
+    }
+    // A window drops the rows with nothing in it, and the axis starts at its start.
+    let narrow = d.join("narrow.svg");
+    let out = pxpl5(&[
+        "trace",
+        "timeline",
+        json.to_str().unwrap(),
+        "--window",
+        "1ms..1.2ms",
+        "--out",
+        narrow.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let svg = std::fs::read_to_string(&narrow).unwrap();
+    assert!(svg.contains(">\n1ms\n<"), "the axis starts at 1ms");
+    let all = timeline_rows(&std::fs::read_to_string(json.with_extension("svg")).unwrap());
+    assert!(timeline_rows(&svg).len() < all.len());
+
+    // Mistakes: exit code 2 naming the file or option.
+    let bad = d.join("bad.json");
+    std::fs::write(&bad, "{\"not\": 1}").unwrap();
+    let garbage = d.join("bad.pftrace");
+    std::fs::write(&garbage, [0x0a, 0xff, 0xff, 0xff, 0xff, 0x0f]).unwrap();
+    for (args, says) in [
+        (
+            vec![bad.to_str().unwrap()],
+            "bad.json: not a Chrome trace (JSON)",
+        ),
+        (
+            vec![garbage.to_str().unwrap()],
+            "bad.pftrace: not a Perfetto trace",
+        ),
+        (vec!["no/such.json"], "no/such.json: cannot read"),
+        (
+            vec![json.to_str().unwrap(), "--window", "2ms..1ms"],
+            "--window",
+        ),
+    ] {
+        let mut all = vec!["trace", "timeline"];
+        all.extend(args);
+        let out = pxpl5(&all);
+        no_panic(&out);
+        assert_eq!(out.status.code(), Some(2), "{all:?}");
+        assert!(
+            text(&out.stderr).contains(says),
+            "{all:?}: {}",
+            text(&out.stderr)
+        );
+    }
+}
