@@ -138,7 +138,9 @@ fn json_ps(v: &Value) -> Option<u64> {
         return int.checked_mul(1_000_000)?.checked_add(frac);
     }
     let us = n.as_f64()?;
-    (0.0..1.8e13).contains(&us).then(|| (us * 1e6).round() as u64)
+    (0.0..1.8e13)
+        .contains(&us)
+        .then(|| (us * 1e6).round() as u64)
 }
 
 /// The rows of a Chrome trace: its threads, in their sort order, with their complete (`X`)
@@ -286,6 +288,13 @@ fn perfetto_rows(bytes: &[u8]) -> Result<Vec<Row>, String> {
             rows[row].slices.push((start * 1_000, ts * 1_000, category));
         }
     }
+    // Tracks are described as first used (a ring lane when a message first needs it): group them
+    // as the JSON's processes do, groups in order of first appearance.
+    let mut first: BTreeMap<String, usize> = BTreeMap::new();
+    for (i, r) in rows.iter().enumerate() {
+        first.entry(r.group.clone()).or_insert(i);
+    }
+    rows.sort_by_key(|r| first[&r.group]);
     Ok(rows)
 }
 
