@@ -85,6 +85,24 @@ struct Pending {
     ends: Vec<u64>,
 }
 
+impl Pending {
+    /// A slice of one recorded slice `(start, end, clipped)`.
+    fn new(name: u64, span: (u64, u64, bool), args: Args, group_gap: Option<u64>) -> Pending {
+        let (start, end, clipped) = span;
+        Pending {
+            name,
+            start,
+            end,
+            args,
+            group_gap,
+            count: 1,
+            clipped,
+            flows: Vec::new(),
+            ends: Vec::new(),
+        }
+    }
+}
+
 #[derive(Debug)]
 struct Track {
     uuid: u64,
@@ -131,6 +149,17 @@ impl std::fmt::Debug for PerfettoTrace {
             .field("bytes", &self.bytes)
             .finish_non_exhaustive()
     }
+}
+
+/// The interning id of `name` in `table` (numbered from 1 in order of first use), and whether it
+/// is new: then the next packet must carry it.
+fn number(table: &mut HashMap<String, u64>, name: &str) -> (u64, bool) {
+    if let Some(&iid) = table.get(name) {
+        return (iid, false);
+    }
+    let iid = table.len() as u64 + 1;
+    table.insert(name.to_owned(), iid);
+    (iid, true)
 }
 
 /// Simulated picoseconds as Perfetto's nanoseconds (rounded down; see the module docs).
@@ -199,20 +228,7 @@ impl PerfettoTrace {
             args.insert("clipped".to_owned(), JsonValue::Bool(true));
         }
         let name = self.intern(name);
-        self.hold(
-            track,
-            Pending {
-                name,
-                start,
-                end,
-                args,
-                group_gap: None,
-                count: 1,
-                clipped,
-                flows: Vec::new(),
-                ends: Vec::new(),
-            },
-        );
+        self.hold(track, Pending::new(name, (start, end, clipped), args, None));
     }
 
     /// Records a slice of a high-rate kind, merged with the previous slice of `track` when that
@@ -246,20 +262,8 @@ impl PerfettoTrace {
             p.clipped |= clipped;
             return;
         }
-        self.hold(
-            track,
-            Pending {
-                name,
-                start,
-                end,
-                args: Args::new(),
-                group_gap: Some(gap),
-                count: 1,
-                clipped,
-                flows: Vec::new(),
-                ends: Vec::new(),
-            },
-        );
+        let run = Pending::new(name, (start, end, clipped), Args::new(), Some(gap));
+        self.hold(track, run);
     }
 
     /// Records an instant event at `at` on `track`, with `args`.
@@ -483,30 +487,25 @@ impl PerfettoTrace {
     }
 
     fn intern(&mut self, name: &str) -> u64 {
-        if let Some(&iid) = self.names.get(name) {
-            return iid;
+        let (iid, new) = number(&mut self.names, name);
+        if new {
+            self.new_names.event_names.push(EventName {
+                iid: Some(iid),
+                name: Some(name.to_owned()),
+            });
         }
-        let iid = self.names.len() as u64 + 1;
-        self.names.insert(name.to_owned(), iid);
-        self.new_names.event_names.push(EventName {
-            iid: Some(iid),
-            name: Some(name.to_owned()),
-        });
         iid
     }
 
     fn intern_arg(&mut self, name: &str) -> u64 {
-        if let Some(&iid) = self.arg_names.get(name) {
-            return iid;
-        }
-        let iid = self.arg_names.len() as u64 + 1;
-        self.arg_names.insert(name.to_owned(), iid);
-        self.new_names
-            .debug_annotation_names
-            .push(DebugAnnotationName {
+        let (iid, new) = number(&mut self.arg_names, name);
+        if new {
+            let interned = DebugAnnotationName {
                 iid: Some(iid),
                 name: Some(name.to_owned()),
-            });
+            };
+            self.new_names.debug_annotation_names.push(interned);
+        }
         iid
     }
 
