@@ -34,7 +34,10 @@
 //! that later events may still join, per counter its value before the window, and the interned
 //! names. The price is the file's order: it is the recording order, not time order. Perfetto's
 //! trace processor sorts a trace's events by timestamp (keeping file order among equal
-//! timestamps) before it builds slices, so what the writer must keep is each track's own order:
+//! timestamps) before it builds slices; it holds a file's events until the file's end unless
+//! the file has the tracing service's flush events, which this writer never writes (its
+//! `TraceSorter`, `src/trace_processor/sorter/trace_sorter.h`). So what the writer must keep is
+//! each track's own order:
 //! a track's slices are to be recorded in start order, disjoint or enclosing what is recorded
 //! after them, as the simulator's recorder does. Then at a shared timestamp a slice's end is
 //! written before the next one's begin.
