@@ -27,6 +27,7 @@ mod output;
 mod radiosity;
 mod run;
 mod stats_cmd;
+mod trace_cmd;
 mod watch;
 
 use std::path::PathBuf;
@@ -77,6 +78,7 @@ impl Command {
             Command::Bench(BenchCommand::Renderer(_)) => "bench renderer",
             Command::Bench(BenchCommand::Machine(_)) => "bench machine",
             Command::Stats(StatsCommand::Diff(_)) => "stats diff",
+            Command::Trace(TraceCommand::Timeline(_)) => "trace timeline",
         }
     }
 }
@@ -104,6 +106,16 @@ enum Command {
     /// Work with saved statistics (stats.json, comparison.json, formfactor --json).
     #[command(subcommand)]
     Stats(StatsCommand),
+    /// Work with trace files (--trace's .json or .pftrace).
+    #[command(subcommand)]
+    Trace(TraceCommand),
+}
+
+#[derive(Subcommand)]
+enum TraceCommand {
+    /// Draw a trace's timeline as an SVG: one row per unit or ring lane, the critical-path track
+    /// on top, slices coloured by category (what a Perfetto screenshot would show).
+    Timeline(trace_cmd::TimelineArgs),
 }
 
 #[derive(Subcommand)]
@@ -218,5 +230,6 @@ fn run_command(command: Option<Command>) -> Result<(), Failure> {
         Some(Command::Radiosity(args)) => radiosity::radiosity(&args),
         Some(Command::Formfactor(args)) => radiosity::formfactor(&args),
         Some(Command::Stats(StatsCommand::Diff(args))) => stats_cmd::diff(&args),
+        Some(Command::Trace(TraceCommand::Timeline(args))) => trace_cmd::timeline(&args),
     }
 }

@@ -40,6 +40,9 @@
 //!
 //! A command computes everything first and then hands all its files to [`write_all`], which
 //! writes them all or none (see there); two outputs to one file are refused ([`distinct`]).
+//! A file too large to hold in memory (a streamed `.pftrace`) is a [`Spool`]: written during the
+//! run to its temporary file (beside the file it replaces, or in the system's temporary
+//! directory for stdout, a FIFO or a device), then handed to [`write_all`] with the others.
 
 use std::fmt;
 use std::fs;
@@ -262,8 +265,13 @@ pub fn distinct<'a>(dests: impl IntoIterator<Item = &'a Dest>) -> Result<(), Use
 /// the temporary files and the directories created, so that the paths are as they were (a FIFO,
 /// a device or stdout may have received part of its bytes); only a failing rename, after the
 /// others, can leave some files replaced. An error names the file.
-pub fn write_all(files: &[(Dest, Vec<u8>)]) -> Result<(), UserError> {
-    distinct(files.iter().map(|(dest, _)| dest))?;
+pub fn write_all(files: &[(Dest, Vec<u8>)], spools: Vec<Spool>) -> Result<(), UserError> {
+    distinct(
+        files
+            .iter()
+            .map(|(dest, _)| dest)
+            .chain(spools.iter().map(|s| &s.dest)),
+    )?;
     let mut created = Vec::new();
     let mut temps: Vec<(PathBuf, &Path)> = Vec::new();
     let undo = |temps: &[(PathBuf, &Path)], created: &[PathBuf]| {
@@ -282,11 +290,28 @@ pub fn write_all(files: &[(Dest, Vec<u8>)]) -> Result<(), UserError> {
         }
         Ok(())
     });
+    // Spooled files replacing a file are staged already (their directories made by the spool).
+    for spool in &spools {
+        if let Dest::Replace(path) = &spool.dest {
+            temps.push((spool.tmp.clone(), path));
+        }
+    }
     let passed = staged.and_then(|()| {
         files.iter().try_for_each(|(dest, bytes)| match dest {
             Dest::Stdout => print_bytes(bytes),
-            Dest::Through(path) => write_through(path, bytes),
+            Dest::Through(path) => write_through(path, |f| f.write_all(bytes)),
             Dest::Replace(_) => Ok(()),
+        })?;
+        spools.iter().try_for_each(|spool| {
+            let copy = |w: &mut dyn Write| {
+                let mut from = fs::File::open(&spool.tmp)?;
+                io::copy(&mut from, w).map(|_| ())
+            };
+            match &spool.dest {
+                Dest::Stdout => write_stdout(|w| copy(w)),
+                Dest::Through(path) => write_through(path, |f| copy(f)),
+                Dest::Replace(_) => Ok(()),
+            }
         })
     });
     if let Err(e) = passed {
@@ -299,7 +324,97 @@ pub fn write_all(files: &[(Dest, Vec<u8>)]) -> Result<(), UserError> {
             return Err(cannot_write(path, e));
         }
     }
+    // Renamed into place, or copied out of the system's temporary directory (Drop removes that
+    // copy); the directories made for them stay.
+    spools.into_iter().for_each(Spool::written);
     Ok(())
+}
+
+/// A file written while the command runs, too large to hold in memory: see the module doc.
+/// Dropped before [`write_all`] wrote it (the run failed), it removes its temporary file and
+/// the directories it created, so the destination is as it was.
+#[derive(Debug)]
+pub struct Spool {
+    dest: Dest,
+    tmp: PathBuf,
+    created: Vec<PathBuf>,
+    /// Set once written: the directories created now hold the file.
+    keep_dirs: bool,
+}
+
+impl Spool {
+    /// Drops the spool of a file written: the directories made for it hold it now.
+    fn written(mut self) {
+        self.keep_dirs = true;
+    }
+
+    /// The spool of `dest` and its temporary file, open for writing. Fails, naming the path, when
+    /// the temporary file cannot be created.
+    pub fn create(dest: &Dest) -> Result<(Spool, fs::File), UserError> {
+        static NEXT: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+        let mut created = Vec::new();
+        let (tmp, shown) = match dest {
+            Dest::Replace(path) => {
+                create_dirs(&parent_dir(path), &mut created).map_err(|e| cannot_write(path, e))?;
+                (temp_beside(path), path.clone())
+            }
+            Dest::Through(path) => (spool_path(&NEXT), path.clone()),
+            Dest::Stdout => (spool_path(&NEXT), PathBuf::from("stdout")),
+        };
+        let mut spool = Spool {
+            dest: dest.clone(),
+            tmp,
+            created,
+            keep_dirs: false,
+        };
+        let opened = fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&spool.tmp)
+            .and_then(|f| {
+                // As write_temp: the replaced file keeps its permissions.
+                if let Dest::Replace(path) = dest
+                    && let Ok(old) = fs::metadata(path)
+                {
+                    f.set_permissions(old.permissions())?;
+                }
+                Ok(f)
+            });
+        match opened {
+            Ok(f) => Ok((spool, f)),
+            Err(e) => {
+                spool.tmp = PathBuf::new();
+                Err(cannot_write(&shown, e))
+            }
+        }
+    }
+}
+
+impl Drop for Spool {
+    fn drop(&mut self) {
+        // After a rename into place the temporary path names nothing: this removes only a copy
+        // left behind.
+        if !self.tmp.as_os_str().is_empty() {
+            let _ = fs::remove_file(&self.tmp);
+        }
+        if !self.keep_dirs {
+            for dir in self.created.iter().rev() {
+                let _ = fs::remove_dir(dir);
+            }
+        }
+    }
+}
+
+/// A spool file in the system's temporary directory, unique in this process.
+fn spool_path(next: &std::sync::atomic::AtomicU32) -> PathBuf {
+    let n = next.fetch_add(1, Ordering::Relaxed);
+    std::env::temp_dir().join(format!("pxpl5-{}-{n}.spool", std::process::id()))
+}
+
+/// The temporary file beside `path` that is renamed over it.
+fn temp_beside(path: &Path) -> PathBuf {
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    parent_dir(path).join(format!(".{name}.pxpl5-{}.tmp", std::process::id()))
 }
 
 /// Create `dir` and its missing ancestors, adding those it created to `created`, outermost first.
@@ -319,13 +434,16 @@ fn cannot_write(path: &Path, e: io::Error) -> UserError {
     UserError(format!("{}: cannot write: {e}", path.display()))
 }
 
-/// Open the existing special file `path` and write `bytes` to it. A reader that closes a pipe
-/// (a FIFO, `/dev/stdout`) before the end is no error, as for stdout.
-fn write_through(path: &Path, bytes: &[u8]) -> Result<(), UserError> {
+/// Open the existing special file `path` and `write` to it. A reader that closes a pipe (a FIFO,
+/// `/dev/stdout`) before the end is no error, as for stdout.
+fn write_through(
+    path: &Path,
+    write: impl FnOnce(&mut fs::File) -> io::Result<()>,
+) -> Result<(), UserError> {
     let written = fs::OpenOptions::new()
         .write(true)
         .open(path)
-        .and_then(|mut f| f.write_all(bytes).and_then(|()| f.flush()));
+        .and_then(|mut f| write(&mut f).and_then(|()| f.flush()));
     match written {
         Err(e) if e.kind() != io::ErrorKind::BrokenPipe => Err(cannot_write(path, e)),
         _ => Ok(()),
@@ -336,9 +454,7 @@ fn write_through(path: &Path, bytes: &[u8]) -> Result<(), UserError> {
 /// file at `path` if there is one. Returns the temporary file's path; on an error, nothing is
 /// left of it.
 fn write_temp(path: &Path, bytes: &[u8]) -> Result<PathBuf, UserError> {
-    let dir = parent_dir(path);
-    let name = path.file_name().unwrap_or_default().to_string_lossy();
-    let tmp = dir.join(format!(".{name}.pxpl5-{}.tmp", std::process::id()));
+    let tmp = temp_beside(path);
     let written = fs::OpenOptions::new()
         .write(true)
         .create_new(true)

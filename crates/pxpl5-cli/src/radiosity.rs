@@ -37,7 +37,7 @@ use crate::choices::{Delta, DepthArg, EdgeRuleArg, FidelityArg, FormFactorMethod
 use crate::config_cmd;
 use crate::failure::Failure;
 use crate::output::{self, out, outln};
-use crate::run::{TraceArgs, machine_units, png_bytes};
+use crate::run::{TraceArgs, TraceDests, machine_units, png_bytes};
 use crate::watch::{self, Estimate, HostLimit, Sim, Watch};
 
 /// Options of `pxpl5 radiosity`.
@@ -252,6 +252,7 @@ fn run_method(
     args: &RadiosityArgs,
     plan: &Plan,
     method: Method,
+    traces: &mut TraceDests,
 ) -> Result<(MethodRun, f64), Failure> {
     tracing::info!(
         method = %method.name(),
@@ -259,7 +260,7 @@ fn run_method(
         max_shots = plan.shots,
         "form-factor method starts"
     );
-    let recorder = args.traces.recorder()?;
+    let recorder = args.traces.recorder(traces)?;
     let mut settings = args.settings(method, plan);
     let name = format!("radiosity ({})", method.name());
     let sim = Sim {
@@ -357,9 +358,9 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
         .iter()
         .map(|name| output::dest("--out", &args.out.join(name), false))
         .collect::<Result<Vec<_>, _>>()?;
-    args.traces.recorder()?;
+    args.traces.window()?;
     let several = methods.len() > 1;
-    let traces = methods
+    let mut traces = methods
         .iter()
         .map(|&m| args.traces.dests(|p| per_method(p, m, several), several))
         .collect::<Result<Vec<_>, _>>()?;
@@ -379,11 +380,11 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
     // Compute everything; after a Ctrl-C, no other method starts.
     let mut runs = Vec::new();
     let mut host_seconds = Vec::new();
-    for &method in &methods {
+    for (&method, traces) in methods.iter().zip(&mut traces) {
         if watch::interrupts() > 0 {
             break;
         }
-        let (run, host) = run_method(&watch, &cfg, &patches, args, &plan, method)?;
+        let (run, host) = run_method(&watch, &cfg, &patches, args, &plan, method, traces)?;
         runs.push(run);
         host_seconds.push(host);
     }
@@ -462,7 +463,8 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
     // Then write it all (the files of methods a Ctrl-C skipped are not among them).
     let written = names[..contents.len()].join(", ");
     let mut writes: Vec<_> = files.into_iter().zip(contents).collect();
-    for (run, traces) in runs.iter().zip(&traces) {
+    let mut spools = Vec::new();
+    for (run, traces) in runs.iter_mut().zip(&mut traces) {
         for (shot, views) in &run.item_buffers {
             for b in views {
                 let name = format!("items-{}-shot{shot}-{}.png", run.method.name(), b.view);
@@ -470,9 +472,11 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
                 writes.push((dest, png_bytes(&picture::item_buffer_picture(b))?));
             }
         }
-        writes.extend(traces.files(&run.recorder)?);
+        let (files, spooled) = traces.files(&mut run.recorder)?;
+        writes.extend(files);
+        spools.extend(spooled);
     }
-    output::write_all(&writes)?;
+    output::write_all(&writes, spools)?;
 
     out!("{}", table(&comparison, &host_seconds, plan.shots))?;
     outln!("wrote {}/{written}", args.out.display())?;

@@ -94,9 +94,9 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         .iter()
         .map(|name| output::dest("--out", &args.out.join(name), false))
         .collect::<Result<Vec<_>, _>>()?;
-    let recorder = args.traces.recorder()?;
-    let traces = args.traces.dests(Path::to_path_buf, false)?;
+    let mut traces = args.traces.dests(Path::to_path_buf, false)?;
     output::distinct(dests.iter().chain(traces.iter()))?;
+    let recorder = args.traces.recorder(&mut traces)?;
 
     let program = Polygons::new(scene);
     let options = RunOptions {
@@ -120,7 +120,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         shots: None,
         interrupt: Stop::Now,
     };
-    let (result, host_seconds) = watch.simulate(
+    let (mut result, host_seconds) = watch.simulate(
         &sim,
         options,
         |options| Machine::new(&cfg, &program as &dyn Program, options, recorder)?.run(),
@@ -136,8 +136,9 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         png_bytes(&result.frame)?,
     ];
     let mut files: Vec<_> = dests.into_iter().zip(contents).collect();
-    files.extend(traces.files(&result.recorder)?);
-    output::write_all(&files)?;
+    let (trace_files, spools) = traces.files(&mut result.recorder)?;
+    files.extend(trace_files);
+    output::write_all(&files, spools)?;
 
     out!("{}", stats.table())?;
     let triangles = program.scene().triangles.len();
@@ -178,8 +179,9 @@ pub fn host_threads(asked: Option<u32>) -> usize {
 /// The trace options every simulating subcommand takes.
 #[derive(Args, Clone, Debug)]
 pub struct TraceArgs {
-    /// Write a Chrome trace (JSON, opens in Perfetto) of simulated time to FILE; `-` is stdout
-    /// (the report then goes to stderr). When a command runs several machines (radiosity
+    /// Write an event trace of simulated time to FILE: Perfetto's native protobuf format when
+    /// FILE ends in .pftrace (written as the run goes, compact), else a Chrome trace (JSON; both
+    /// open in ui.perfetto.dev); `-` is stdout, as JSON (the report then goes to stderr). When a command runs several machines (radiosity
     /// --method both), each run's name goes before the extension: t.hemisphere.json,
     /// t.hemicube.json. A FIFO or device is written through, a symlink kept.
     #[arg(long, value_name = "FILE")]
@@ -194,18 +196,28 @@ pub struct TraceArgs {
 }
 
 impl TraceArgs {
-    /// The recorder of one run, after checking the window: fails before any simulation.
-    pub fn recorder(&self) -> Result<Recorder, UserError> {
-        let window = match &self.trace_window {
-            Some(w) => {
-                TraceWindow::parse(w).map_err(|e| UserError(format!("--trace-window: {e}")))?
+    /// The trace window, checked: fails before any simulation.
+    pub fn window(&self) -> Result<TraceWindow, UserError> {
+        match &self.trace_window {
+            Some(w) => TraceWindow::parse(w).map_err(|e| UserError(format!("--trace-window: {e}"))),
+            None => Ok(TraceWindow::all()),
+        }
+    }
+
+    /// The recorder of one run whose traces go to `dests`. A Perfetto trace is streamed during
+    /// the run: its spool (temporary file) is created now and kept in `dests`.
+    pub fn recorder(&self, dests: &mut TraceDests) -> Result<Recorder, UserError> {
+        let window = self.window()?;
+        let vcd = self.vcd.as_ref().map(|_| window);
+        match &dests.trace {
+            Some(dest) if dests.perfetto => {
+                let (spool, file) = output::Spool::create(dest)?;
+                dests.spool = Some(spool);
+                let out = Box::new(std::io::BufWriter::new(file));
+                Ok(Recorder::perfetto(window, out, vcd))
             }
-            None => TraceWindow::all(),
-        };
-        Ok(Recorder::new(
-            self.trace.as_ref().map(|_| window),
-            self.vcd.as_ref().map(|_| window),
-        ))
+            trace => Ok(Recorder::new(trace.as_ref().map(|_| window), vcd)),
+        }
     }
 
     /// Where the traces of one run go, each at `name(path given)`, checked before the run
@@ -231,14 +243,27 @@ impl TraceArgs {
         Ok(TraceDests {
             trace: one("--trace", &self.trace)?,
             vcd: one("--vcd", &self.vcd)?,
+            perfetto: self.trace.as_deref().is_some_and(is_perfetto),
+            spool: None,
         })
     }
 }
 
+/// Whether `--trace FILE` asks for Perfetto's protobuf format: FILE ends in `.pftrace`.
+/// Anything else, `-` included, is Chrome JSON.
+pub fn is_perfetto(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("pftrace"))
+}
+
 /// Where one run's traces go.
+#[derive(Debug)]
 pub struct TraceDests {
     trace: Option<Dest>,
     vcd: Option<Dest>,
+    /// Whether the trace is Perfetto's format, streamed to `spool`.
+    perfetto: bool,
+    spool: Option<output::Spool>,
 }
 
 impl TraceDests {
@@ -247,10 +272,17 @@ impl TraceDests {
         self.trace.iter().chain(&self.vcd)
     }
 
-    /// A finished run's trace files: where each goes and its bytes.
-    pub fn files(&self, recorder: &Recorder) -> Result<Vec<(Dest, Vec<u8>)>, UserError> {
+    /// A finished run's trace files: where each goes and its bytes, and the streamed trace's
+    /// spool (ended now).
+    #[allow(clippy::type_complexity)]
+    pub fn files(
+        &mut self,
+        recorder: &mut Recorder,
+    ) -> Result<(Vec<(Dest, Vec<u8>)>, Vec<output::Spool>), UserError> {
         let mut files = Vec::new();
-        if let Some(dest) = &self.trace {
+        if let Some(dest) = &self.trace
+            && !self.perfetto
+        {
             let mut bytes = Vec::new();
             recorder.write_chrome(&mut bytes).map_err(UserError::from)?;
             files.push((dest.clone(), bytes));
@@ -260,7 +292,20 @@ impl TraceDests {
             recorder.write_vcd(&mut bytes).map_err(UserError::from)?;
             files.push((dest.clone(), bytes));
         }
-        Ok(files)
+        let spools: Vec<output::Spool> = self.spool.take().into_iter().collect();
+        if !spools.is_empty() {
+            recorder.finish_trace().map_err(|e| {
+                let shown = self
+                    .trace
+                    .as_ref()
+                    .map_or(String::from("--trace"), |d| match d {
+                        Dest::Stdout => "stdout".to_string(),
+                        Dest::Replace(p) | Dest::Through(p) => p.display().to_string(),
+                    });
+                UserError(format!("{shown}: cannot write: {e}"))
+            })?;
+        }
+        Ok((files, spools))
     }
 }
 

@@ -1,6 +1,7 @@
 //! The `pxpl5` command as a user runs it: exit codes, messages naming file, line and field, and
 //! the benchmark's agreement between fidelity levels.
 
+use std::collections::BTreeSet;
 use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
@@ -2026,5 +2027,149 @@ fn a_ten_megabyte_line_gives_a_short_report() {
         assert_eq!(out.status.code(), Some(2));
         assert!(out.stderr.len() < 5_000, "{} bytes", out.stderr.len());
         assert!(text(&out.stderr).contains("unknown field"));
+    }
+}
+
+#[test]
+fn a_pftrace_is_perfetto_protobuf_streamed_to_its_file_or_a_device_and_nothing_on_failure() {
+    let d = out_dir("pftrace");
+    let file = d.join("deep/t.pftrace");
+    let out = run_small_with(&d.join("out"), &["--trace", file.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let bytes = std::fs::read(&file).unwrap();
+    let packets = pxpl5_trace::read_packets(&bytes).expect("a Perfetto trace");
+    let tracks: BTreeSet<String> = packets
+        .iter()
+        .filter_map(|p| p.track_descriptor.as_ref()?.name.clone())
+        .collect();
+    assert!(
+        tracks.contains("GP 0") && tracks.contains("Ring channel 0"),
+        "{tracks:?}"
+    );
+    assert!(packets.iter().filter(|p| p.track_event.is_some()).count() > 50);
+    // No temporary file is left beside it.
+    assert_eq!(std::fs::read_dir(d.join("deep")).unwrap().count(), 1);
+
+    // Through a symlink to a device (stdout, a pipe here), named .pftrace: the same bytes (a run
+    // is deterministic), written through, spooled meanwhile in the temporary directory. (`-` has
+    // no extension: it is JSON.)
+    #[cfg(unix)]
+    if Path::new("/dev/stdout").exists() {
+        let link = d.join("stdout.pftrace");
+        std::os::unix::fs::symlink("/dev/stdout", &link).unwrap();
+        let out = run_small_with(&d.join("out"), &["--trace", link.to_str().unwrap()]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        assert!(out.stdout.starts_with(&bytes), "not the same trace");
+        assert!(
+            std::fs::symlink_metadata(&link)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
+    }
+
+    // A run that fails leaves no file, no temporary file and no directory it made.
+    let failed = out_dir("pftrace-failed");
+    let out = run_small_with(
+        &failed,
+        &[
+            "--time-limit",
+            "1us",
+            "--trace",
+            failed.join("new/t.pftrace").to_str().unwrap(),
+        ],
+    );
+    no_panic(&out);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out.stderr));
+    assert!(!failed.exists(), "a failed run left {:?}", listing(&failed));
+}
+
+/// The row labels of a timeline SVG, top to bottom (the label column's texts).
+fn timeline_rows(svg: &str) -> Vec<String> {
+    let mut rows = Vec::new();
+    let mut rest = svg;
+    while let Some(at) = rest.find("<text x=\"4\"") {
+        rest = &rest[at..];
+        let body = &rest[rest.find('>').unwrap() + 1..rest.find("</text>").unwrap()];
+        rows.push(body.trim().to_owned());
+        rest = &rest[1..];
+    }
+    rows
+}
+
+#[test]
+fn trace_timeline_draws_a_row_per_track_with_the_critical_path_on_top() {
+    let d = out_dir("timeline");
+    std::fs::create_dir_all(&d).unwrap();
+    let (json, pf) = (d.join("t.json"), d.join("t.pftrace"));
+    for trace in [&json, &pf] {
+        let out = run_small_with(&d.join("out"), &["--trace", trace.to_str().unwrap()]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+    }
+    for trace in [&json, &pf] {
+        let out = pxpl5(&["trace", "timeline", trace.to_str().unwrap()]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        let svg = std::fs::read_to_string(trace.with_extension("svg")).unwrap();
+        assert!(svg.starts_with("<svg"), "{trace:?}");
+        let rows = timeline_rows(&svg);
+        assert_eq!(rows[0], "critical path", "{rows:?}");
+        for want in [
+            "GP 0",
+            "GP 0 phases",
+            "Renderer 0",
+            "Ring channel 0 / lane 0",
+        ] {
+            assert!(rows.iter().any(|r| r == want), "no row {want}: {rows:?}");
+        }
+        assert!(svg.contains("critical path, by category"), "a legend");
+        assert!(svg.matches("<rect").count() > 20);
+    }
+    // A window drops the rows with nothing in it, and the axis starts at its start.
+    let narrow = d.join("narrow.svg");
+    let out = pxpl5(&[
+        "trace",
+        "timeline",
+        json.to_str().unwrap(),
+        "--window",
+        "1ms..1.2ms",
+        "--out",
+        narrow.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let svg = std::fs::read_to_string(&narrow).unwrap();
+    assert!(svg.contains(">\n1ms\n<"), "the axis starts at 1ms");
+    let all = timeline_rows(&std::fs::read_to_string(json.with_extension("svg")).unwrap());
+    assert!(timeline_rows(&svg).len() < all.len());
+
+    // Mistakes: exit code 2 naming the file or option.
+    let bad = d.join("bad.json");
+    std::fs::write(&bad, "{\"not\": 1}").unwrap();
+    let garbage = d.join("bad.pftrace");
+    std::fs::write(&garbage, [0x0a, 0xff, 0xff, 0xff, 0xff, 0x0f]).unwrap();
+    for (args, says) in [
+        (
+            vec![bad.to_str().unwrap()],
+            "bad.json: not a Chrome trace (JSON)",
+        ),
+        (
+            vec![garbage.to_str().unwrap()],
+            "bad.pftrace: not a Perfetto trace",
+        ),
+        (vec!["no/such.json"], "no/such.json: cannot read"),
+        (
+            vec![json.to_str().unwrap(), "--window", "2ms..1ms"],
+            "--window",
+        ),
+    ] {
+        let mut all = vec!["trace", "timeline"];
+        all.extend(args);
+        let out = pxpl5(&all);
+        no_panic(&out);
+        assert_eq!(out.status.code(), Some(2), "{all:?}");
+        assert!(
+            text(&out.stderr).contains(says),
+            "{all:?}: {}",
+            text(&out.stderr)
+        );
     }
 }

@@ -12,6 +12,12 @@
 //! so the run's path is the profile of the unit that finished last, in O(units + messages in
 //! flight) memory. A profile's total is always the time it stands for.
 //!
+//! When the run is traced, a profile also carries its path itself, as a chain of segments
+//! ([`Segment`]: unit, category, start, end) shared between the profiles that descend from it
+//! (an `Arc`'d list: a profile copied to a message shares its chain, and a chain no profile
+//! reaches any more is freed). The recorder draws the chain of the unit that finished last as the
+//! trace's critical-path track. Untraced, a profile has no chain and an addition costs one branch.
+//!
 //! Categories ([`Categories`]), each of a [`Resource`]: `GP <phase>` (computation in a program phase), `GP message send`
 //! and `GP message receive` (the software costs), `GP waits for ring queue space` (a send blocked
 //! on a full output queue), `ring transfer` (from the ring taking a message to its receiver
@@ -20,8 +26,11 @@
 //! `Renderer stall` (clock-edge alignment, backing-store fences).
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 use pxpl5_sim::Tick;
+
+use crate::gp::Unit;
 
 /// Most categories a run tells apart; any beyond are counted as `other`.
 pub(crate) const MAX_CATEGORIES: usize = 48;
@@ -59,6 +68,17 @@ pub struct PathPart {
     pub time: Tick,
 }
 
+/// A segment of the run's critical path as the trace shows it: `[start, end)` spent in
+/// `activity` (a category, as the stats name it), of `resource`, by `unit` when one did it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PathSegment {
+    pub unit: Option<Unit>,
+    pub resource: Resource,
+    pub activity: String,
+    pub start: Tick,
+    pub end: Tick,
+}
+
 /// The names of a run's categories, numbered as first used (deterministic: the machine's order
 /// of events is), each with its resource.
 pub(crate) struct Categories {
@@ -92,6 +112,23 @@ impl Categories {
         c
     }
 
+    /// A traced profile's path as the trace draws it: its segments in time order, named.
+    pub fn path_segments(&self, p: &Profile) -> Vec<PathSegment> {
+        p.segments()
+            .into_iter()
+            .map(|s| {
+                let (activity, resource) = &self.names[s.cat.0 as usize];
+                PathSegment {
+                    unit: s.unit,
+                    resource: *resource,
+                    activity: activity.clone(),
+                    start: s.start,
+                    end: s.end,
+                }
+            })
+            .collect()
+    }
+
     /// A profile's nonzero categories, largest first (ties by name).
     pub fn parts(&self, p: &Profile) -> Vec<PathPart> {
         let mut out: Vec<PathPart> = self
@@ -114,21 +151,71 @@ impl Categories {
     }
 }
 
-/// Time per category along a critical path, in picoseconds.
-#[derive(Clone, Debug, PartialEq, Eq)]
+/// Time per category along a critical path, in picoseconds; with its segments when traced.
+#[derive(Clone, Debug)]
 pub(crate) struct Profile {
     ticks: [u64; MAX_CATEGORIES],
+    /// The path's segments, when the run is traced (see the module doc).
+    trail: Option<Trail>,
 }
 
 impl Default for Profile {
     fn default() -> Profile {
         Profile {
             ticks: [0; MAX_CATEGORIES],
+            trail: None,
         }
     }
 }
 
+/// The end of a traced path: its last segment (which leads back to the first) and the time the
+/// path reaches.
+#[derive(Clone, Debug, Default)]
+struct Trail {
+    last: Option<Arc<Link>>,
+    end: Tick,
+}
+
+/// A segment of a traced path and the one before it.
+#[derive(Debug)]
+struct Link {
+    segment: Segment,
+    before: Option<Arc<Link>>,
+}
+
+impl Drop for Link {
+    /// Frees a chain no longer shared link by link, not by recursion: a long run's path has
+    /// hundreds of thousands of links, enough to overflow the stack.
+    fn drop(&mut self) {
+        let mut next = self.before.take();
+        while let Some(link) = next {
+            next = match Arc::try_unwrap(link) {
+                Ok(mut only) => only.before.take(),
+                Err(_) => None,
+            };
+        }
+    }
+}
+
+/// A stretch of a critical path: `[start, end)` spent in `cat`, by `unit` when one unit did it
+/// (a GP or Renderer; `None` for the ring's own categories).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Segment {
+    pub cat: Cat,
+    pub unit: Option<Unit>,
+    pub start: Tick,
+    pub end: Tick,
+}
+
 impl Profile {
+    /// An empty profile that records its segments (a traced run's units start with one).
+    pub fn traced() -> Profile {
+        Profile {
+            trail: Some(Trail::default()),
+            ..Profile::default()
+        }
+    }
+
     /// This profile with `d` more spent in `cat`.
     pub fn plus(&self, cat: Cat, d: Tick) -> Profile {
         let mut p = self.clone();
@@ -136,13 +223,76 @@ impl Profile {
         p
     }
 
+    /// [`Profile::plus`], the time spent by `unit`.
+    pub fn plus_by(&self, cat: Cat, d: Tick, unit: Unit) -> Profile {
+        let mut p = self.clone();
+        p.add_by(cat, d, unit);
+        p
+    }
+
     pub fn add(&mut self, cat: Cat, d: Tick) {
         self.ticks[cat.0 as usize] += d.0;
+        if self.trail.is_some() {
+            self.extend(cat, d, None);
+        }
+    }
+
+    /// [`Profile::add`], the time spent by `unit`.
+    pub fn add_by(&mut self, cat: Cat, d: Tick, unit: Unit) {
+        self.ticks[cat.0 as usize] += d.0;
+        if self.trail.is_some() {
+            self.extend(cat, d, Some(unit));
+        }
+    }
+
+    /// Appends a segment of `d` to the trail (merged into the last one when it continues it).
+    #[cold]
+    fn extend(&mut self, cat: Cat, d: Tick, unit: Option<Unit>) {
+        let Some(trail) = &mut self.trail else {
+            return;
+        };
+        if d == Tick::ZERO {
+            return;
+        }
+        let start = trail.end;
+        let end = Tick(start.0 + d.0);
+        trail.end = end;
+        let link = match trail.last.take() {
+            Some(last) if last.segment.cat == cat && last.segment.unit == unit => Link {
+                segment: Segment {
+                    end,
+                    ..last.segment
+                },
+                before: last.before.clone(),
+            },
+            before => Link {
+                segment: Segment {
+                    cat,
+                    unit,
+                    start,
+                    end,
+                },
+                before,
+            },
+        };
+        trail.last = Some(Arc::new(link));
     }
 
     /// The time the profile stands for.
     pub fn total(&self) -> Tick {
         Tick(self.ticks.iter().sum())
+    }
+
+    /// The traced path's segments in time order (none when untraced).
+    pub fn segments(&self) -> Vec<Segment> {
+        let mut out = Vec::new();
+        let mut next = self.trail.as_ref().and_then(|t| t.last.as_deref());
+        while let Some(link) = next {
+            out.push(link.segment);
+            next = link.before.as_deref();
+        }
+        out.reverse();
+        out
     }
 }
 
@@ -201,6 +351,36 @@ mod tests {
                 part(Resource::Gp, "GP select", 6)
             ]
         );
+        // Traced, the same additions are segments end to end, a continued one merged.
+        let traced = Profile::traced()
+            .plus_by(a, Tick(5), Unit::Gp(0))
+            .plus(b, Tick(7))
+            .plus_by(a, Tick(1), Unit::Gp(0))
+            .plus_by(a, Tick(2), Unit::Gp(0))
+            .plus_by(a, Tick(3), Unit::Gp(1));
+        let seg = |cat, unit, start, end| Segment {
+            cat,
+            unit,
+            start: Tick(start),
+            end: Tick(end),
+        };
+        assert_eq!(
+            traced.segments(),
+            [
+                seg(a, Some(Unit::Gp(0)), 0, 5),
+                seg(b, None, 5, 12),
+                seg(a, Some(Unit::Gp(0)), 12, 15),
+                seg(a, Some(Unit::Gp(1)), 15, 18),
+            ]
+        );
+        assert!(p.segments().is_empty(), "untraced: no segments");
+        // A long chain is freed without recursion.
+        let mut long = Profile::traced();
+        for i in 0..300_000u64 {
+            long.add_by(if i % 2 == 0 { a } else { b }, Tick(1), Unit::Gp(0));
+        }
+        assert_eq!(long.segments().len(), 300_000);
+        drop(long);
         // Past the limit, new names count as `other`.
         for i in 0..MAX_CATEGORIES {
             c.get(&format!("kind {i}"), Resource::Renderer);

@@ -189,6 +189,15 @@ impl Machine {
             renderer_cycle,
             u64::from(self.cfg.ring.queue_words),
         );
+        // A traced run keeps its critical paths' segments, for the trace's critical-path track.
+        if self.recorder.traces_events() {
+            self.gps
+                .iter_mut()
+                .for_each(|g| g.profile = Profile::traced());
+            self.renderers
+                .iter_mut()
+                .for_each(|r| r.profile = Profile::traced());
+        }
         // Instants since the monitor was last looked at (see `crate::monitor`).
         let mut unwatched = 0u64;
         loop {
@@ -283,8 +292,11 @@ impl Machine {
                         unreachable!("GP {g} was blocked on a send a moment ago")
                     };
                     let node = &mut self.gps[g];
-                    node.profile
-                        .add(self.fixed.blocked, self.now - node.blocked_since);
+                    node.profile.add_by(
+                        self.fixed.blocked,
+                        self.now - node.blocked_since,
+                        Unit::Gp(g as u32),
+                    );
                     let sent = Sent {
                         at: self.now,
                         profile: node.profile.clone(),
@@ -333,7 +345,9 @@ impl Machine {
             Busy::Send => self.fixed.send,
             Busy::Receive => self.fixed.receive,
         };
-        self.gps[g as usize].profile.add(cat, until - self.now);
+        self.gps[g as usize]
+            .profile
+            .add_by(cat, until - self.now, Unit::Gp(g));
         self.schedule(until, Event::GpWake(g));
     }
 
@@ -468,9 +482,11 @@ impl Machine {
                 .expect("the outgoing message offered a moment ago");
             let sent = Sent {
                 at: self.now,
-                profile: node
-                    .profile
-                    .plus(self.fixed.readback_waits, self.now - node.last_end),
+                profile: node.profile.plus_by(
+                    self.fixed.readback_waits,
+                    self.now - node.last_end,
+                    Unit::Renderer(r),
+                ),
             };
             self.recorder.message_sent(id, Unit::Renderer(r), self.now);
             self.delivery.sent(id, route, out.payload, sent);
@@ -503,13 +519,16 @@ impl Machine {
         } else {
             self.fixed.stall
         };
+        let unit = Unit::Renderer(r);
         let mut path = match started.arrival.as_deref() {
             Some((at, profile)) if *at > node.last_end => {
-                profile.plus(self.fixed.stall, started.start - *at)
+                profile.plus_by(self.fixed.stall, started.start - *at, unit)
             }
-            _ => node.profile.plus(wait, started.start - node.last_end),
+            _ => node
+                .profile
+                .plus_by(wait, started.start - node.last_end, unit),
         };
-        path.add(kind, started.end - started.start);
+        path.add_by(kind, started.end - started.start, unit);
         node.profile = path;
         node.last_end = started.end;
         node.last_readback = started.readback;
@@ -530,17 +549,20 @@ impl Machine {
         }
     }
 
-    /// The run's critical path: the path of the unit that finished last (a GP on a tie).
-    fn critical_path(&self, end: Tick) -> Vec<PathPart> {
+    /// The path of the unit that finished last (a GP on a tie), and when it finished.
+    fn last_path(&self, end: Tick) -> Option<(Tick, &Profile)> {
         let gps = self.gps.iter().map(|g| (g.stats(end).finished, &g.profile));
         let renderers = self.renderers.iter().map(|r| (r.last_end, &r.profile));
-        let last = gps
-            .chain(renderers)
+        gps.chain(renderers)
             .fold(None, |best: Option<(Tick, &Profile)>, (t, p)| match best {
                 Some((bt, _)) if bt >= t => best,
                 _ => Some((t, p)),
-            });
-        last.map_or_else(Vec::new, |(t, p)| {
+            })
+    }
+
+    /// The run's critical path: the path of the unit that finished last.
+    fn critical_path(&self, end: Tick) -> Vec<PathPart> {
+        self.last_path(end).map_or_else(Vec::new, |(t, p)| {
             // Every step adds exactly the time it took: the path accounts for all of it.
             debug_assert_eq!(p.total(), t, "critical path total");
             self.categories.parts(p)
@@ -567,6 +589,9 @@ impl Machine {
         let renderers = self.renderers.iter().map(|r| r.stats(end)).collect();
         let phases: Vec<PhaseSpan> = self.recorder.phase_spans(end);
         let critical_path = self.critical_path(end);
+        let segments = self
+            .last_path(end)
+            .map_or_else(Vec::new, |(_, p)| self.categories.path_segments(p));
         let stats = RunStats {
             critical_path,
             program: self.program.clone(),
@@ -581,6 +606,7 @@ impl Machine {
             frame_writes: self.frame.writes,
         };
         let mut recorder = self.recorder;
+        recorder.critical_path(&segments);
         recorder.close(end);
         RunResult {
             stats,

@@ -1,7 +1,10 @@
 //! What the machine records as it runs: program phase marks (always, for the stats) and, on
 //! request, Chrome trace and VCD events in simulated time.
 //!
-//! Tracks (Chrome trace): per GP its phases (named as in the stats' `phases`) and its busy time,
+//! Tracks (Chrome trace, or Perfetto's format): first, process `Critical path`, whose track
+//! `unit and activity` shows over simulated time which unit, doing what, held the run's critical
+//! path (the stats' `critical_path` attribution, segment by segment: its slices' lengths per
+//! category sum to the stats' figures; see `critical`); per GP its phases (named as in the stats' `phases`) and its busy time,
 //! as `compute`, `message send` and `message receive` slices (the stats' critical-path
 //! categories); per Renderer its commands, grouped into runs of back-to-back commands of one kind
 //! (there are too many to show one by one); per ring channel a process `Ring channel C` whose
@@ -26,9 +29,11 @@ use std::collections::{BTreeMap, VecDeque};
 use pxpl5_ring::{Delivery, MessageId, NodeId, Ring, TokenLocation};
 use pxpl5_sim::Tick;
 use pxpl5_trace::{
-    Args, ChromeTrace, FlowStep, JsonValue, SignalId, TraceWindow, TrackId, VcdTrace,
+    Args, ChromeTrace, EventTrace, FlowStep, JsonValue, PerfettoTrace, SignalId, TraceWindow,
+    TrackId, VcdTrace,
 };
 
+use crate::critical::PathSegment;
 use crate::gp::Unit;
 use crate::gp_node::Busy;
 use crate::renderer_node::Started;
@@ -38,6 +43,7 @@ use crate::stats::PhaseSpan;
 const FLOW: &str = "message";
 
 struct Tracks {
+    critical: TrackId,
     gp: Vec<TrackId>,
     gp_phase: Vec<TrackId>,
     renderer: Vec<TrackId>,
@@ -91,7 +97,8 @@ struct Flows {
 /// The machine's recorder.
 #[derive(Default)]
 pub struct Recorder {
-    chrome: Option<ChromeTrace>,
+    /// The event trace (`--trace`): Chrome JSON or Perfetto's format.
+    trace: Option<EventTrace>,
     vcd: Option<VcdTrace>,
     tracks: Option<Tracks>,
     signals: Option<Signals>,
@@ -129,8 +136,25 @@ fn channel_list(mask: u64, sep: &str) -> String {
 impl Recorder {
     /// A recorder that writes a Chrome trace and/or a VCD limited to their windows.
     pub fn new(chrome: Option<TraceWindow>, vcd: Option<TraceWindow>) -> Recorder {
+        Recorder::with_trace(chrome.map(|w| EventTrace::Chrome(ChromeTrace::new(w))), vcd)
+    }
+
+    /// A recorder that writes a Perfetto trace of `window` to `out` as the run goes (see
+    /// [`PerfettoTrace`]), and a VCD if `vcd` says so; [`Recorder::finish_trace`] ends it.
+    pub fn perfetto(
+        window: TraceWindow,
+        out: Box<dyn std::io::Write + Send>,
+        vcd: Option<TraceWindow>,
+    ) -> Recorder {
+        Recorder::with_trace(
+            Some(EventTrace::Perfetto(PerfettoTrace::new(window, out))),
+            vcd,
+        )
+    }
+
+    fn with_trace(trace: Option<EventTrace>, vcd: Option<TraceWindow>) -> Recorder {
         Recorder {
-            chrome: chrome.map(ChromeTrace::new),
+            trace,
             vcd: vcd.map(VcdTrace::new),
             ..Recorder::default()
         }
@@ -159,7 +183,8 @@ impl Recorder {
             readback: vec![None; renderers],
             answers: BTreeMap::new(),
         };
-        if let Some(c) = &mut self.chrome {
+        if let Some(c) = &mut self.trace {
+            let critical = c.track("Critical path", "unit and activity");
             let mut gp_tracks = Vec::new();
             let mut phase_tracks = Vec::new();
             for g in 0..gps {
@@ -184,6 +209,7 @@ impl Recorder {
                 units.iter().map(|u| u.to_string()).collect::<Vec<_>>(),
             );
             self.tracks = Some(Tracks {
+                critical,
                 gp: gp_tracks,
                 gp_phase: phase_tracks,
                 renderer,
@@ -234,7 +260,7 @@ impl Recorder {
 
     pub(crate) fn gp_busy(&mut self, gp: u32, start: Tick, end: Tick, busy: Busy) {
         let g = gp as usize;
-        if let (Some(c), Some(t)) = (&mut self.chrome, &self.tracks) {
+        if let (Some(c), Some(t)) = (&mut self.trace, &self.tracks) {
             let name = match busy {
                 Busy::Compute => "compute",
                 Busy::Send => "message send",
@@ -264,7 +290,7 @@ impl Recorder {
         let &Started {
             kind, start, end, ..
         } = started;
-        if let (Some(c), Some(t)) = (&mut self.chrome, &self.tracks) {
+        if let (Some(c), Some(t)) = (&mut self.trace, &self.tracks) {
             let track = t.renderer[r as usize];
             c.slice_grouped(track, kind, start, end, self.renderer_gap);
             // The message's flow passes its first, readback and last commands: enough to see
@@ -291,7 +317,7 @@ impl Recorder {
 
     /// Message `id` left `from` (the ring took it) at `at`: its flow starts in the sender's slice.
     pub(crate) fn message_sent(&mut self, id: MessageId, from: Unit, at: Tick) {
-        let (Some(c), Some(t)) = (&mut self.chrome, &self.tracks) else {
+        let (Some(c), Some(t)) = (&mut self.trace, &self.tracks) else {
             return;
         };
         match from {
@@ -328,7 +354,7 @@ impl Recorder {
 
     /// Message `id` was handed to GP `gp`'s mailbox: its next receive takes it.
     pub(crate) fn handed_to_gp(&mut self, gp: u32, id: MessageId) {
-        if self.chrome.is_some()
+        if self.trace.is_some()
             && let Some(inbox) = self.flows.gp_inbox.get_mut(gp as usize)
         {
             inbox.push_back(id);
@@ -336,7 +362,7 @@ impl Recorder {
     }
 
     pub(crate) fn message_delivered(&mut self, d: &Delivery, from: Unit, to: Unit) {
-        let (Some(c), Some(t)) = (&mut self.chrome, &mut self.tracks) else {
+        let (Some(c), Some(t)) = (&mut self.trace, &mut self.tracks) else {
             return;
         };
         let (sent, delivered) = (d.sent, d.delivered);
@@ -383,10 +409,10 @@ impl Recorder {
     }
 
     pub(crate) fn ring_sample(&mut self, now: Tick, ring: &Ring) {
-        if self.chrome.is_none() && self.vcd.is_none() {
+        if self.trace.is_none() && self.vcd.is_none() {
             return;
         }
-        if let Some(c) = &mut self.chrome {
+        if let Some(c) = &mut self.trace {
             let cap = self.queue_capacity;
             for (i, unit) in self.units.iter().enumerate() {
                 let node = NodeId(i as u32);
@@ -420,7 +446,7 @@ impl Recorder {
                 None => (u32::MAX, false),
             };
             let (was_held, was_at) = self.token[ch];
-            if let Some(c) = &mut self.chrome
+            if let Some(c) = &mut self.trace
                 && held != was_held
                 && ch < 64
             {
@@ -490,9 +516,45 @@ impl Recorder {
         spans
     }
 
+    /// Whether an event trace is recorded (then the machine keeps its critical paths' segments).
+    pub(crate) fn traces_events(&self) -> bool {
+        self.trace.is_some()
+    }
+
+    /// Draws the run's critical path, `segments` in time order, on its track: each slice is named
+    /// by its unit and activity (`GP 0: transform`, `ring transfer`, `Renderer 3: qee`, `GP 2:
+    /// waits for ring queue space`), with
+    /// args `category` (the stats' name), `resource` and `unit`.
+    pub(crate) fn critical_path(&mut self, segments: &[PathSegment]) {
+        let (Some(c), Some(t)) = (&mut self.trace, &self.tracks) else {
+            return;
+        };
+        for s in segments {
+            // Categories start with the kind of unit they are of: `GP transform` done by GP 0
+            // is `GP 0: transform`.
+            let kind = match s.unit {
+                Some(Unit::Gp(_)) => "GP ",
+                Some(Unit::Renderer(_)) => "Renderer ",
+                _ => "",
+            };
+            let name = match (s.unit, s.activity.strip_prefix(kind)) {
+                (Some(unit), Some(rest)) if !kind.is_empty() => format!("{unit}: {rest}"),
+                _ => s.activity.clone(),
+            };
+            let mut args = vec![
+                ("category", JsonValue::from(s.activity.as_str())),
+                ("resource", JsonValue::from(s.resource.name())),
+            ];
+            if let Some(unit) = s.unit {
+                args.push(("unit", JsonValue::from(unit.to_string())));
+            }
+            c.slice(t.critical, &name, s.start, s.end, args);
+        }
+    }
+
     pub(crate) fn close(&mut self, end: Tick) {
         let spans = self.gp_phases(end);
-        if let (Some(c), Some(t)) = (&mut self.chrome, &self.tracks) {
+        if let (Some(c), Some(t)) = (&mut self.trace, &self.tracks) {
             for p in spans {
                 c.slice(
                     t.gp_phase[p.gp as usize],
@@ -511,9 +573,18 @@ impl Recorder {
 
     /// Write the Chrome trace, if one was asked for.
     pub fn write_chrome(&self, w: impl std::io::Write) -> std::io::Result<bool> {
-        match &self.chrome {
-            Some(c) => c.write(w).map(|_| true),
-            None => Ok(false),
+        match &self.trace {
+            Some(EventTrace::Chrome(c)) => c.write(w).map(|_| true),
+            _ => Ok(false),
+        }
+    }
+
+    /// End the Perfetto trace, if one was asked for: write what it still holds and flush its
+    /// writer. Returns whether there was one, or its first write error.
+    pub fn finish_trace(&mut self) -> std::io::Result<bool> {
+        match &mut self.trace {
+            Some(EventTrace::Perfetto(p)) => p.finish().map(|()| true),
+            _ => Ok(false),
         }
     }
 

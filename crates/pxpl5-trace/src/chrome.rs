@@ -61,7 +61,7 @@ pub const RESERVED_METADATA_KEYS: [&str; 2] = ["time_unit", "trace_window"];
 
 /// A (process, thread) track of one [`ChromeTrace`]; meaningless to any other trace.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub struct TrackId(usize);
+pub struct TrackId(pub(crate) usize);
 
 /// A named process: a group of tracks, and the owner of counters.
 #[derive(Debug)]
@@ -247,7 +247,7 @@ impl ChromeTrace {
         end: Tick,
         args: impl IntoIterator<Item = (K, JsonValue)>,
     ) {
-        let Some((start, end, clipped)) = self.clip(start, end) else {
+        let Some((start, end, clipped)) = self.window.clip(start, end) else {
             return;
         };
         let mut args: Args = args.into_iter().map(|(k, v)| (k.into(), v)).collect();
@@ -285,7 +285,7 @@ impl ChromeTrace {
         end: Tick,
         min_gap: Tick,
     ) {
-        let Some((start, end, clipped)) = self.clip(start, end) else {
+        let Some((start, end, clipped)) = self.window.clip(start, end) else {
             return;
         };
         let seq = self.next_seq();
@@ -649,28 +649,6 @@ impl ChromeTrace {
                 args: Cow::Owned(Args::new()),
             });
         }
-    }
-
-    /// `[start, end)` clipped to the window, with whether it was clipped; `None` if it lies
-    /// entirely outside. A zero-length slice is kept when its instant is inside.
-    fn clip(&self, start: Tick, end: Tick) -> Option<(u64, u64, bool)> {
-        let (start, end) = (start.as_ps(), end.as_ps().max(start.as_ps()));
-        let (w_start, w_end) = (self.window.start.as_ps(), self.window.end.as_ps());
-        if start == end {
-            return self
-                .window
-                .contains(Tick(start))
-                .then_some((start, end, false));
-        }
-        if start >= w_end || end <= w_start {
-            return None;
-        }
-        let (clipped_start, clipped_end) = (start.max(w_start), end.min(w_end));
-        Some((
-            clipped_start,
-            clipped_end,
-            (clipped_start, clipped_end) != (start, end),
-        ))
     }
 
     fn process(&mut self, name: &str) -> usize {

@@ -1,5 +1,7 @@
-//! Trace writers over simulated time: the simulator's `--trace FILE` (Chrome trace-event JSON, for
-//! Perfetto or chrome://tracing) and `--vcd FILE` (Value Change Dump, for GTKWave or Surfer).
+//! Trace writers over simulated time: the simulator's `--trace FILE.json` (Chrome trace-event
+//! JSON, for Perfetto or chrome://tracing), `--trace FILE.pftrace` (Perfetto's native protobuf
+//! format, streamed: [`PerfettoTrace`]) and `--vcd FILE` (Value Change Dump, for GTKWave or
+//! Surfer).
 //!
 //! The crate knows nothing of Pixel-Planes: it offers tracks, slices, instants, counters and flows
 //! ([`ChromeTrace`]) and scoped wires and string variables ([`VcdTrace`]), all stamped with [`Tick`]s of simulated time,
@@ -31,7 +33,10 @@
 #![warn(missing_docs)]
 
 mod chrome;
+mod event_trace;
 mod json;
+mod perfetto;
+pub mod proto;
 mod vcd_trace;
 mod window;
 
@@ -39,7 +44,9 @@ pub use chrome::{
     Args, ChromeTrace, FlowStep, Micros, NestingError, RESERVED_METADATA_KEYS, SliceSpan,
     TIME_UNIT_NOTE, TrackId,
 };
+pub use event_trace::EventTrace;
 pub use json::JsonValue;
+pub use perfetto::{PerfettoTrace, read_packets};
 pub use pxpl5_sim::Tick;
 pub use vcd_trace::{MAX_WIDTH, ScopeId, SignalId, VcdTrace, WidthError};
 pub use window::{

@@ -65,6 +65,26 @@ impl TraceWindow {
         self.start <= at && at < self.end
     }
 
+    /// `[start, end)` clipped to the window, in picoseconds, with whether it was clipped; `None`
+    /// if it lies entirely outside. `end < start` is taken as `end == start`; a zero-length span
+    /// is kept when its instant is inside.
+    pub(crate) fn clip(self, start: Tick, end: Tick) -> Option<(u64, u64, bool)> {
+        let (start, end) = (start.as_ps(), end.as_ps().max(start.as_ps()));
+        let (w_start, w_end) = (self.start.as_ps(), self.end.as_ps());
+        if start == end {
+            return self.contains(Tick(start)).then_some((start, end, false));
+        }
+        if start >= w_end || end <= w_start {
+            return None;
+        }
+        let (clipped_start, clipped_end) = (start.max(w_start), end.min(w_end));
+        Some((
+            clipped_start,
+            clipped_end,
+            (clipped_start, clipped_end) != (start, end),
+        ))
+    }
+
     /// Whether the end is open (the window keeps everything after its start).
     pub fn is_open_ended(self) -> bool {
         self.end == Tick::MAX
