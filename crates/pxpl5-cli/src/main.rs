@@ -27,6 +27,7 @@ mod output;
 mod radiosity;
 mod run;
 mod stats_cmd;
+mod sweep;
 mod watch;
 
 use std::path::PathBuf;
@@ -76,6 +77,8 @@ impl Command {
             Command::Run(_) => "run",
             Command::Bench(BenchCommand::Renderer(_)) => "bench renderer",
             Command::Stats(StatsCommand::Diff(_)) => "stats diff",
+            Command::Sweep(c) if c.merge.is_some() => "sweep merge",
+            Command::Sweep(_) => "sweep",
         }
     }
 }
@@ -103,6 +106,11 @@ enum Command {
     /// Work with saved statistics (stats.json, comparison.json, formfactor --json).
     #[command(subcommand)]
     Stats(StatsCommand),
+    /// A study of the radiosity experiment over machine-config fields and radiosity options
+    /// (--set PATH=V1,V2,... or --study FILE, their cross product): one row per point and
+    /// method in OUT/sweep.csv and sweep.json, points run in parallel, a rerun resumes;
+    /// `sweep merge` joins shards (--shard K/N).
+    Sweep(sweep::SweepCommand),
 }
 
 #[derive(Subcommand)]
@@ -196,7 +204,9 @@ fn run_command(command: Option<Command>) -> Result<(), Failure> {
     let _entered = span.enter();
     if matches!(
         command,
-        None | Some(Command::Run(_) | Command::Radiosity(_) | Command::Formfactor(_))
+        None | Some(
+            Command::Run(_) | Command::Radiosity(_) | Command::Formfactor(_) | Command::Sweep(_)
+        )
     ) {
         watch::catch_interrupts();
     }
@@ -211,5 +221,6 @@ fn run_command(command: Option<Command>) -> Result<(), Failure> {
         Some(Command::Radiosity(args)) => radiosity::radiosity(&args),
         Some(Command::Formfactor(args)) => radiosity::formfactor(&args),
         Some(Command::Stats(StatsCommand::Diff(args))) => stats_cmd::diff(&args),
+        Some(Command::Sweep(cmd)) => sweep::sweep(&cmd),
     }
 }
