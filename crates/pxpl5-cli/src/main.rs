@@ -24,6 +24,7 @@ mod failure;
 mod fuzz;
 mod logging;
 mod output;
+mod plot;
 mod radiosity;
 mod run;
 mod stats_cmd;
@@ -77,6 +78,7 @@ impl Command {
             Command::Run(_) => "run",
             Command::Bench(BenchCommand::Renderer(_)) => "bench renderer",
             Command::Stats(StatsCommand::Diff(_)) => "stats diff",
+            Command::Plot(_) => "plot",
             Command::Sweep(c) if c.merge.is_some() => "sweep merge",
             Command::Sweep(_) => "sweep",
         }
@@ -111,6 +113,10 @@ enum Command {
     /// method in OUT/sweep.csv and sweep.json, points run in parallel, a rerun resumes;
     /// `sweep merge` joins shards (--shard K/N).
     Sweep(sweep::SweepCommand),
+    /// Draw saved results as SVG: a sweep's ratio and time per shot against a swept parameter,
+    /// radiosity's convergence (error against shots, per method), a sensitivity tornado, a
+    /// stability study.
+    Plot(plot::PlotArgs),
 }
 
 #[derive(Subcommand)]
@@ -222,5 +228,6 @@ fn run_command(command: Option<Command>) -> Result<(), Failure> {
         Some(Command::Formfactor(args)) => radiosity::formfactor(&args),
         Some(Command::Stats(StatsCommand::Diff(args))) => stats_cmd::diff(&args),
         Some(Command::Sweep(cmd)) => sweep::sweep(&cmd),
+        Some(Command::Plot(args)) => Ok(plot::plot(&args)?),
     }
 }
