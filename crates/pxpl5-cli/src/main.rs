@@ -27,6 +27,7 @@ mod output;
 mod plot;
 mod radiosity;
 mod run;
+mod sensitivity;
 mod stats_cmd;
 mod sweep;
 mod watch;
@@ -79,6 +80,7 @@ impl Command {
             Command::Bench(BenchCommand::Renderer(_)) => "bench renderer",
             Command::Stats(StatsCommand::Diff(_)) => "stats diff",
             Command::Plot(_) => "plot",
+            Command::Sensitivity(_) => "sensitivity",
             Command::Sweep(c) if c.merge.is_some() => "sweep merge",
             Command::Sweep(_) => "sweep",
         }
@@ -117,6 +119,10 @@ enum Command {
     /// radiosity's convergence (error against shots, per method), a sensitivity tornado, a
     /// stability study.
     Plot(plot::PlotArgs),
+    /// Move every [assumed] parameter of the machine config across its plausible range (low,
+    /// high, the others at their defaults), run both methods, and rank the assumptions by how
+    /// far they move the hemicube / hemisphere ratio: a table and a tornado chart (SVG).
+    Sensitivity(sensitivity::SensitivityArgs),
 }
 
 #[derive(Subcommand)]
@@ -211,7 +217,11 @@ fn run_command(command: Option<Command>) -> Result<(), Failure> {
     if matches!(
         command,
         None | Some(
-            Command::Run(_) | Command::Radiosity(_) | Command::Formfactor(_) | Command::Sweep(_)
+            Command::Run(_)
+                | Command::Radiosity(_)
+                | Command::Formfactor(_)
+                | Command::Sweep(_)
+                | Command::Sensitivity(_)
         )
     ) {
         watch::catch_interrupts();
@@ -229,5 +239,6 @@ fn run_command(command: Option<Command>) -> Result<(), Failure> {
         Some(Command::Stats(StatsCommand::Diff(args))) => stats_cmd::diff(&args),
         Some(Command::Sweep(cmd)) => sweep::sweep(&cmd),
         Some(Command::Plot(args)) => Ok(plot::plot(&args)?),
+        Some(Command::Sensitivity(args)) => sensitivity::sensitivity(&args),
     }
 }

@@ -296,45 +296,48 @@ pub fn tornado(title: &str, x_label: &str, bars: &[Bar]) -> Result<String, UserE
             .margin(12)
             .x_label_area_size(42)
             .y_label_area_size(330)
-            .build_cartesian_2d(x0..x1, (0..n as i32).into_segmented())
+            .build_cartesian_2d(
+                Keyed::new(x0..x1, ticks(x0, x1, false)),
+                // A label at the middle of each bar's row.
+                Keyed::new(0.0..n as f64, (0..n).map(|i| i as f64 + 0.5).collect()),
+            )
             .map_err(drawing)?;
-        let label = |v: &SegmentValue<i32>| match v {
-            // The first bar (the largest) at the top.
-            SegmentValue::CenterOf(i) => names
-                .get(n.wrapping_sub(1).wrapping_sub(*i as usize))
+        // Row i from the bottom holds bar n - 1 - i: the first bar (the largest) at the top.
+        let label = |v: &f64| {
+            let row = v.floor().max(0.0) as usize;
+            names
+                .get(n.saturating_sub(1).saturating_sub(row))
                 .cloned()
-                .unwrap_or_default(),
-            _ => String::new(),
+                .unwrap_or_default()
         };
         c.configure_mesh()
             .x_desc(x_label)
             .x_label_formatter(&|v: &f64| tick(*v))
             .y_label_formatter(&label)
-            .y_labels(n)
             .light_line_style(WHITE)
             .draw()
             .map_err(drawing)?;
         let low = RGBColor(31, 119, 180);
         let high = RGBColor(214, 39, 40);
         for (k, b) in bars.iter().enumerate() {
-            let row = (n - 1 - k) as i32;
-            for (end, colour) in [(b.low, low), (b.high, high)] {
+            let row = (n - 1 - k) as f64;
+            // The longer bar first, so that the shorter one stays visible over it.
+            let mut ends = [(b.low, low), (b.high, high)];
+            ends.sort_by(|x, y| y.0.abs().total_cmp(&x.0.abs()));
+            for (end, colour) in ends {
                 let rect = Rectangle::new(
-                    [
-                        (0.0, SegmentValue::Exact(row)),
-                        (end, SegmentValue::Exact(row + 1)),
-                    ],
-                    colour.mix(0.75).filled(),
+                    [(0.0, row + 0.15), (end, row + 0.85)],
+                    colour.mix(0.8).filled(),
                 );
                 c.draw_series(std::iter::once(rect)).map_err(drawing)?;
             }
         }
         // The legend: which colour is which end.
-        c.draw_series(std::iter::empty::<Circle<(f64, SegmentValue<i32>), i32>>())
+        c.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
             .map_err(drawing)?
             .label("low end of the range")
             .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], low.filled()));
-        c.draw_series(std::iter::empty::<Circle<(f64, SegmentValue<i32>), i32>>())
+        c.draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
             .map_err(drawing)?
             .label("high end of the range")
             .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], high.filled()));
@@ -360,6 +363,11 @@ impl Table {
     pub fn read(path: &Path) -> Result<Table, UserError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| UserError(format!("{}: cannot read: {e}", path.display())))?;
+        Table::parse(path, &text)
+    }
+
+    /// The table of CSV `text`, named `path` in errors.
+    pub fn parse(path: &Path, text: &str) -> Result<Table, UserError> {
         let mut lines = text
             .lines()
             .filter(|l| !l.starts_with('#') && !l.is_empty());
@@ -625,7 +633,7 @@ fn convergence_chart(tables: &[Table]) -> Result<Chart, UserError> {
 }
 
 /// The tornado chart of a `sensitivity.csv`.
-fn sensitivity_chart(t: &Table) -> Result<String, UserError> {
+pub fn sensitivity_chart(t: &Table) -> Result<String, UserError> {
     let name = t.column("parameter", "plot")?;
     let low = t.column("ratio_low", "plot")?;
     let high = t.column("ratio_high", "plot")?;

@@ -239,3 +239,74 @@ fn a_study_file_lists_points_beside_its_cross_product() {
         text(&o.stderr)
     );
 }
+
+/// `pxpl5 sensitivity` on two assumptions of a tiny job: a row each, ranked by how far they move
+/// the ratio, and the tornado chart; an `--only` that names nothing is a user error.
+#[test]
+fn sensitivity_ranks_the_assumptions_it_moves() {
+    let out = dir("sensitivity");
+    let o = pxpl5(&[
+        "sensitivity",
+        "--only",
+        "ring.hop_latency,gp.costs.message_send",
+        "--set",
+        "program.patch_size=400",
+        "--set",
+        "program.resolution=16",
+        "--shots",
+        "4",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let csv = std::fs::read_to_string(out.join("sensitivity.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(rows.len(), 2, "{csv}");
+    let mut names: Vec<&str> = rows.iter().map(|r| r[1]).collect();
+    names.sort_unstable();
+    assert_eq!(names, ["gp.costs.message_send", "ring.hop_latency_cycles"]);
+    // Ranked by swing, largest first; the swing is the larger move of the ratio at either end.
+    let swing = |r: &Vec<&str>| r[7].parse::<f64>().unwrap();
+    assert!(swing(&rows[0]) >= swing(&rows[1]), "{csv}");
+    for r in &rows {
+        let (d, lo, hi) = (
+            r[4].parse::<f64>().unwrap(),
+            r[5].parse::<f64>().unwrap(),
+            r[6].parse::<f64>().unwrap(),
+        );
+        assert_eq!(swing(r), (lo - d).abs().max((hi - d).abs()), "{csv}");
+    }
+    // 200 cycles a message cost the GPs more than 20: the hemisphere's time per shot grows.
+    let send = rows
+        .iter()
+        .find(|r| r[1] == "gp.costs.message_send")
+        .unwrap();
+    assert!(
+        send[10].parse::<f64>().unwrap() > send[9].parse::<f64>().unwrap(),
+        "{csv}"
+    );
+    let svg = std::fs::read_to_string(out.join("sensitivity.svg")).unwrap();
+    assert!(svg.contains("ring.hop_latency_cycles") && svg.contains("gp.costs.message_send"));
+    // The study's rows: the default and both ends of each, two methods each.
+    let study = std::fs::read_to_string(out.join("sweep.csv")).unwrap();
+    assert_eq!(study.lines().count(), 2 + 5 * 2, "{study}");
+
+    let o = pxpl5(&[
+        "sensitivity",
+        "--only",
+        "no.such",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        text(&o.stderr).contains("--only no.such"),
+        "{}",
+        text(&o.stderr)
+    );
+}
