@@ -28,6 +28,7 @@ mod plot;
 mod radiosity;
 mod run;
 mod sensitivity;
+mod stability;
 mod stats_cmd;
 mod sweep;
 mod watch;
@@ -81,6 +82,7 @@ impl Command {
             Command::Stats(StatsCommand::Diff(_)) => "stats diff",
             Command::Plot(_) => "plot",
             Command::Sensitivity(_) => "sensitivity",
+            Command::Stability(_) => "stability",
             Command::Sweep(c) if c.merge.is_some() => "sweep merge",
             Command::Sweep(_) => "sweep",
         }
@@ -123,6 +125,10 @@ enum Command {
     /// high, the others at their defaults), run both methods, and rank the assumptions by how
     /// far they move the hemicube / hemisphere ratio: a table and a tornado chart (SVG).
     Sensitivity(sensitivity::SensitivityArgs),
+    /// Numerical stability at the extremes: the machine's form factor against exact as the
+    /// QEE's fractional bits (4 to 32), the geometry's scale (1e-9 to 1e9) and a polygon's
+    /// elevation (pole to horizon) move: a table and a plot.
+    Stability(stability::StabilityArgs),
 }
 
 #[derive(Subcommand)]
@@ -222,6 +228,7 @@ fn run_command(command: Option<Command>) -> Result<(), Failure> {
                 | Command::Formfactor(_)
                 | Command::Sweep(_)
                 | Command::Sensitivity(_)
+                | Command::Stability(_)
         )
     ) {
         watch::catch_interrupts();
@@ -240,5 +247,6 @@ fn run_command(command: Option<Command>) -> Result<(), Failure> {
         Some(Command::Sweep(cmd)) => sweep::sweep(&cmd),
         Some(Command::Plot(args)) => Ok(plot::plot(&args)?),
         Some(Command::Sensitivity(args)) => sensitivity::sensitivity(&args),
+        Some(Command::Stability(args)) => stability::stability(&args),
     }
 }

@@ -85,7 +85,11 @@ fn tick(v: f64) -> String {
     }
     let a = v.abs();
     if !(1e-3..1e5).contains(&a) {
-        return format!("{v:.0e}");
+        // Up to three significant digits, trailing zeros dropped: 8.06e-4, 1e-6.
+        let s = format!("{v:.2e}");
+        let (mantissa, exponent) = s.split_once('e').unwrap_or((&s, "0"));
+        let mantissa = mantissa.trim_end_matches('0').trim_end_matches('.');
+        return format!("{mantissa}e{exponent}");
     }
     let s = format!("{v:.3}");
     s.trim_end_matches('0').trim_end_matches('.').to_string()
@@ -663,7 +667,7 @@ pub fn sensitivity_chart(t: &Table) -> Result<String, UserError> {
 }
 
 /// The charts of a `stability.csv`: per study, the form-factor error against its quantity.
-fn stability_charts(t: &Table) -> Result<Vec<Chart>, UserError> {
+pub fn stability_charts(t: &Table) -> Result<Vec<Chart>, UserError> {
     let study = t.column("study", "plot")?;
     let x = t.column("x", "plot")?;
     let method = t.column("method", "plot")?;
@@ -723,6 +727,7 @@ mod tests {
         assert_eq!(tick(2.5), "2.5");
         assert_eq!(tick(128.0), "128");
         assert_eq!(tick(1e-6), "1e-6");
+        assert_eq!(tick(8.0555e-4), "8.06e-4");
         assert_eq!(tick(0.125), "0.125");
         assert_eq!(
             ticks(0.0, 1.0, false),

@@ -310,3 +310,65 @@ fn sensitivity_ranks_the_assumptions_it_moves() {
         text(&o.stderr)
     );
 }
+
+/// `pxpl5 stability`: a row per study value; scaling the whole geometry changes neither the
+/// exact form factor nor the machine's (it works in the point's frame), so the error is the same
+/// at every scale; the same bytes on a second run.
+#[test]
+fn stability_rows_and_scale_invariance() {
+    let out = dir("stability");
+    let run = || {
+        let o = pxpl5(&[
+            "stability",
+            "--method",
+            "hemisphere",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        std::fs::read(out.join("stability.csv")).unwrap()
+    };
+    let first = run();
+    assert_eq!(first, run());
+    let csv = String::from_utf8(first).unwrap();
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(rows.len(), 8 + 7 + 9, "{csv}");
+    let scale: Vec<f64> = rows
+        .iter()
+        .filter(|r| r[0] == "scale")
+        .map(|r| r[5].parse().unwrap())
+        .collect();
+    assert_eq!(scale.len(), 7);
+    // The machine's value is the same bits at every scale; the exact one is rounded a little
+    // differently, far below the error itself.
+    assert!(
+        scale
+            .iter()
+            .all(|e| (e - scale[0]).abs() < 1e-9 * scale[0] && *e < 0.05),
+        "{scale:?}"
+    );
+    let values: Vec<&str> = rows
+        .iter()
+        .filter(|r| r[0] == "scale")
+        .map(|r| r[3])
+        .collect();
+    assert!(values.iter().all(|v| *v == values[0]), "{values:?}");
+    // At 128 pixels across, 4 fractional bits place the hemisphere's edges worse than 16.
+    let frac = |bits: &str| -> f64 {
+        rows.iter()
+            .find(|r| r[0] == "qee_frac_bits" && r[1] == bits)
+            .map(|r| r[5].parse().unwrap())
+            .unwrap()
+    };
+    assert!(frac("4") > frac("16"), "{csv}");
+    assert!(
+        std::fs::read_to_string(out.join("stability.svg"))
+            .unwrap()
+            .contains("elevation_deg")
+    );
+}
