@@ -121,7 +121,7 @@ enum Command {
     /// radiosity's convergence (error against shots, per method), a sensitivity tornado, a
     /// stability study.
     Plot(plot::PlotArgs),
-    /// Move every [assumed] parameter of the machine config across its plausible range (low,
+    /// Move every `[assumed]` parameter of the machine config across its plausible range (low,
     /// high, the others at their defaults), run both methods, and rank the assumptions by how
     /// far they move the hemicube / hemisphere ratio: a table and a tornado chart (SVG).
     Sensitivity(sensitivity::SensitivityArgs),

@@ -581,6 +581,16 @@ fn options_json(
     })
 }
 
+/// The share of the run's time that `resource` held the critical path.
+pub(crate) fn critical_share(stats: &RunStats, resource: Resource) -> f64 {
+    let held = stats
+        .critical_resources()
+        .iter()
+        .find(|(r, _)| *r == resource)
+        .map_or(0, |(_, t)| t.0);
+    held as f64 / stats.end.0.max(1) as f64
+}
+
 /// A percentage with enough digits to compare two methods.
 fn pct(x: f64) -> String {
     format!("{:.2} %", 100.0 * x)
@@ -717,15 +727,7 @@ fn table(c: &Comparison, host_seconds: &[f64], asked: usize) -> String {
     for resource in [Resource::Gp, Resource::Ring, Resource::Renderer] {
         t += &row(
             &format!("critical path: {}", resource.name()),
-            each(&|m| {
-                let held = m
-                    .stats
-                    .critical_resources()
-                    .iter()
-                    .find(|(r, _)| *r == resource)
-                    .map_or(0, |(_, t)| t.0);
-                pct(held as f64 / m.stats.end.0.max(1) as f64)
-            }),
+            each(&|m| pct(critical_share(&m.stats, resource))),
         );
     }
     t += &row(

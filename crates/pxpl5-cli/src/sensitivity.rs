@@ -17,7 +17,7 @@ use pxpl5_config::{PROVENANCE, Tag};
 use crate::UserError;
 use crate::choices::Methods;
 use crate::failure::Failure;
-use crate::output::{self, out, outln};
+use crate::output::{out, outln};
 use crate::plot::{self, Table};
 use crate::radiosity::number;
 use crate::sweep::{self, Done, Stopped, Study, SweepArgs};
@@ -178,10 +178,7 @@ pub fn sensitivity(args: &SensitivityArgs) -> Result<(), Failure> {
         limit: None,
         host_time_limit: args.host_time_limit.clone(),
     };
-    let workers = args.workers.map_or_else(
-        || std::thread::available_parallelism().map_or(1, |n| n.get()),
-        |n| n as usize,
-    );
+    let workers = sweep::workers(args.workers);
     let (done, total, stopped) = sweep::run_study(&study, &resolved, &sweep_args, workers)?;
     match stopped {
         Stopped::No | Stopped::Limit => {}
@@ -214,15 +211,13 @@ pub fn sensitivity(args: &SensitivityArgs) -> Result<(), Failure> {
     let csv = table_csv(&effects, &default, base_ratio);
     let table = Table::parse(&args.out.join("sensitivity.csv"), &csv)?;
     let svg = plot::sensitivity_chart(&table)?;
-    let files = [
-        ("sensitivity.csv", csv.clone().into_bytes()),
-        ("sensitivity.svg", svg.into_bytes()),
-    ];
-    let writes = files
-        .into_iter()
-        .map(|(name, bytes)| Ok((output::dest("--out", &args.out.join(name), false)?, bytes)))
-        .collect::<Result<Vec<_>, UserError>>()?;
-    output::write_all(&writes)?;
+    sweep::write_files(
+        &args.out,
+        vec![
+            ("sensitivity.csv".into(), csv.into_bytes()),
+            ("sensitivity.svg".into(), svg.into_bytes()),
+        ],
+    )?;
     out!("{}", table_text(&effects, &default, base_ratio))?;
     outln!(
         "wrote {}/sensitivity.csv, sensitivity.svg (the study's rows: sweep.csv)",

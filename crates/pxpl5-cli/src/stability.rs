@@ -187,14 +187,13 @@ pub fn stability(args: &StabilityArgs) -> Result<(), Failure> {
     let csv = stability_csv(&rows, args);
     let table = Table::parse(&args.out.join("stability.csv"), &csv)?;
     let svg = plot::svg(&plot::stability_charts(&table)?, (520, 420))?;
-    let writes = [
-        ("stability.csv", csv.into_bytes()),
-        ("stability.svg", svg.into_bytes()),
-    ]
-    .into_iter()
-    .map(|(name, bytes)| Ok((output::dest("--out", &args.out.join(name), false)?, bytes)))
-    .collect::<Result<Vec<_>, UserError>>()?;
-    output::write_all(&writes)?;
+    crate::sweep::write_files(
+        &args.out,
+        vec![
+            ("stability.csv".into(), csv.into_bytes()),
+            ("stability.svg".into(), svg.into_bytes()),
+        ],
+    )?;
     out!("{}", stability_text(&rows))?;
     outln!("wrote {}/stability.csv, stability.svg", args.out.display())?;
     Ok(())

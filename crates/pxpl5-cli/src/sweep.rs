@@ -685,16 +685,7 @@ fn rows_of(point: &Point, c: &Comparison) -> Vec<Vec<(String, String)>> {
                 ("method".into(), m.method.name().into()),
             ];
             row.extend(point.columns.iter().cloned());
-            let end = m.stats.end.0.max(1) as f64;
-            let critical = |r: Resource| {
-                let held = m
-                    .stats
-                    .critical_resources()
-                    .iter()
-                    .find(|(x, _)| *x == r)
-                    .map_or(0, |(_, t)| t.0);
-                number(held as f64 / end)
-            };
+            let critical = |r: Resource| number(radiosity::critical_share(&m.stats, r));
             let target = m.convergence.as_ref().and_then(|c| c.time_to_target);
             let bottleneck = m
                 .stats
@@ -933,7 +924,7 @@ fn journal(dir: &Path, points: &[Point]) -> BTreeMap<usize, Done> {
 }
 
 /// Write `files` (name, bytes) into `dir`, all or nothing.
-fn write_files(dir: &Path, files: Vec<(String, Vec<u8>)>) -> Result<(), UserError> {
+pub(crate) fn write_files(dir: &Path, files: Vec<(String, Vec<u8>)>) -> Result<(), UserError> {
     let writes = files
         .into_iter()
         .map(|(name, bytes)| Ok((output::dest("--out", &dir.join(name), false)?, bytes)))
@@ -949,11 +940,7 @@ pub fn sweep(cmd: &SweepCommand) -> Result<(), Failure> {
     let args = &cmd.args;
     let study = study_of(args)?;
     let points = resolve(&study)?;
-    let workers = args.workers.map_or_else(
-        || std::thread::available_parallelism().map_or(1, |n| n.get()),
-        |n| n as usize,
-    );
-    let (done, total, stopped) = run_study(&study, &points, args, workers)?;
+    let (done, total, stopped) = run_study(&study, &points, args, workers(args.workers))?;
     let ran = done.len();
     let mine = points
         .iter()
@@ -982,6 +969,14 @@ pub fn sweep(cmd: &SweepCommand) -> Result<(), Failure> {
         }
     }
     Ok(())
+}
+
+/// `--workers`, or the cores available.
+pub fn workers(given: Option<u32>) -> usize {
+    given.map_or_else(
+        || std::thread::available_parallelism().map_or(1, |n| n.get()),
+        |n| n as usize,
+    )
 }
 
 /// Why a study's run stopped before its points were done, if it did.

@@ -16,6 +16,15 @@ fn text(b: &[u8]) -> String {
     String::from_utf8_lossy(b).into_owned()
 }
 
+/// The rows of a CSV the commands write (no `#` lines, no header), split at commas.
+fn csv_rows(csv: &str) -> Vec<Vec<&str>> {
+    csv.lines()
+        .filter(|l| !l.starts_with('#'))
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect()
+}
+
 /// A fresh directory for `name`'s outputs.
 fn dir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("pxpl5-sweep-test-{}-{name}", std::process::id()));
@@ -260,12 +269,7 @@ fn sensitivity_ranks_the_assumptions_it_moves() {
     ]);
     assert!(o.status.success(), "{}", text(&o.stderr));
     let csv = std::fs::read_to_string(out.join("sensitivity.csv")).unwrap();
-    let rows: Vec<Vec<&str>> = csv
-        .lines()
-        .filter(|l| !l.starts_with('#'))
-        .skip(1)
-        .map(|l| l.split(',').collect())
-        .collect();
+    let rows = csv_rows(&csv);
     assert_eq!(rows.len(), 2, "{csv}");
     let mut names: Vec<&str> = rows.iter().map(|r| r[1]).collect();
     names.sort_unstable();
@@ -331,12 +335,7 @@ fn stability_rows_and_scale_invariance() {
     let first = run();
     assert_eq!(first, run());
     let csv = String::from_utf8(first).unwrap();
-    let rows: Vec<Vec<&str>> = csv
-        .lines()
-        .filter(|l| !l.starts_with('#'))
-        .skip(1)
-        .map(|l| l.split(',').collect())
-        .collect();
+    let rows = csv_rows(&csv);
     assert_eq!(rows.len(), 8 + 7 + 9, "{csv}");
     let scale: Vec<f64> = rows
         .iter()
