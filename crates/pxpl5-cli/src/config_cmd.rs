@@ -50,6 +50,14 @@ pub fn load(file: Option<&Path>) -> Result<MachineConfig, UserError> {
     Ok(cfg)
 }
 
+/// Check `cfg`, a config changed after loading (`origin` names where: e.g. the sweep's point),
+/// as a file is checked: [`pxpl5_config::check`] and the host memory limit.
+pub fn check_changed(origin: &str, cfg: &MachineConfig) -> Result<(), UserError> {
+    pxpl5_config::check(origin, cfg).map_err(report)?;
+    check_memory(origin, cfg).map_err(UserError)?;
+    Ok(())
+}
+
 /// [`load`] without the host memory check.
 fn load_unchecked(file: Option<&Path>) -> Result<MachineConfig, UserError> {
     let cfg = match file {

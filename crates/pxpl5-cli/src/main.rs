@@ -24,9 +24,13 @@ mod failure;
 mod fuzz;
 mod logging;
 mod output;
+mod plot;
 mod radiosity;
 mod run;
+mod sensitivity;
+mod stability;
 mod stats_cmd;
+mod sweep;
 mod trace_cmd;
 mod watch;
 
@@ -79,6 +83,11 @@ impl Command {
             Command::Bench(BenchCommand::Machine(_)) => "bench machine",
             Command::Stats(StatsCommand::Diff(_)) => "stats diff",
             Command::Trace(TraceCommand::Timeline(_)) => "trace timeline",
+            Command::Plot(_) => "plot",
+            Command::Sensitivity(_) => "sensitivity",
+            Command::Stability(_) => "stability",
+            Command::Sweep(c) if c.merge.is_some() => "sweep merge",
+            Command::Sweep(_) => "sweep",
         }
     }
 }
@@ -109,6 +118,23 @@ enum Command {
     /// Work with trace files (--trace's .json or .pftrace).
     #[command(subcommand)]
     Trace(TraceCommand),
+    /// A study of the radiosity experiment over machine-config fields and radiosity options
+    /// (--set PATH=V1,V2,... or --study FILE, their cross product): one row per point and
+    /// method in OUT/sweep.csv and sweep.json, points run in parallel, a rerun resumes;
+    /// `sweep merge` joins shards (--shard K/N).
+    Sweep(sweep::SweepCommand),
+    /// Draw saved results as SVG: a sweep's ratio and time per shot against a swept parameter,
+    /// radiosity's convergence (error against shots, per method), a sensitivity tornado, a
+    /// stability study.
+    Plot(plot::PlotArgs),
+    /// Move every `[assumed]` parameter of the machine config across its plausible range (low,
+    /// high, the others at their defaults), run both methods, and rank the assumptions by how
+    /// far they move the hemicube / hemisphere ratio: a table and a tornado chart (SVG).
+    Sensitivity(sensitivity::SensitivityArgs),
+    /// Numerical stability at the extremes: the machine's form factor against exact as the
+    /// QEE's fractional bits (4 to 32), the geometry's scale (1e-9 to 1e9) and a polygon's
+    /// elevation (pole to horizon) move: a table and a plot.
+    Stability(stability::StabilityArgs),
 }
 
 #[derive(Subcommand)]
@@ -214,7 +240,14 @@ fn run_command(command: Option<Command>) -> Result<(), Failure> {
     let _entered = span.enter();
     if matches!(
         command,
-        None | Some(Command::Run(_) | Command::Radiosity(_) | Command::Formfactor(_))
+        None | Some(
+            Command::Run(_)
+                | Command::Radiosity(_)
+                | Command::Formfactor(_)
+                | Command::Sweep(_)
+                | Command::Sensitivity(_)
+                | Command::Stability(_)
+        )
     ) {
         watch::catch_interrupts();
     }
@@ -231,5 +264,9 @@ fn run_command(command: Option<Command>) -> Result<(), Failure> {
         Some(Command::Formfactor(args)) => radiosity::formfactor(&args),
         Some(Command::Stats(StatsCommand::Diff(args))) => stats_cmd::diff(&args),
         Some(Command::Trace(TraceCommand::Timeline(args))) => trace_cmd::timeline(&args),
+        Some(Command::Sweep(cmd)) => sweep::sweep(&cmd),
+        Some(Command::Plot(args)) => Ok(plot::plot(&args)?),
+        Some(Command::Sensitivity(args)) => sensitivity::sensitivity(&args),
+        Some(Command::Stability(args)) => stability::stability(&args),
     }
 }

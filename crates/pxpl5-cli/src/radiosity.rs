@@ -182,11 +182,11 @@ impl RadiosityArgs {
 }
 
 /// What a run's defaults resolve to on its machine and scene.
-struct Plan {
-    shots: usize,
-    shooters_at_once: usize,
-    reference: Option<Rc<Reference>>,
-    until_error: Option<f64>,
+pub(crate) struct Plan {
+    pub shots: usize,
+    pub shooters_at_once: usize,
+    pub reference: Option<Rc<Reference>>,
+    pub until_error: Option<f64>,
 }
 
 impl Plan {
@@ -245,7 +245,7 @@ const SHOTS_PER_PATCH: usize = 10;
 const SHOTS_WITHOUT_REFERENCE: usize = 6;
 
 /// Run `method` under `watch`; returns the run and its host seconds. Writes nothing.
-fn run_method(
+pub(crate) fn run_method(
     watch: &Watch,
     cfg: &pxpl5_config::MachineConfig,
     patches: &[Patch],
@@ -307,12 +307,20 @@ fn method_files(method: Method, reference: bool, camera: bool) -> Vec<String> {
     names
 }
 
-/// Runs every method, renders the pictures, and only then writes every output, all or nothing
-/// (`output::write_all`), and prints the report: a failure anywhere leaves the output directory
-/// as it was. Every output whose name is known is checked before the first run.
-pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
-    let watch = Watch::new(args.host_time_limit.clone());
-    let cfg = config_cmd::load(args.config.as_deref())?;
+/// A radiosity job ready to run on its machine: the scene, its mesh and the resolved plan.
+pub(crate) struct Prepared {
+    pub scene: RadiosityScene,
+    pub patches: Vec<Patch>,
+    pub plan: Plan,
+}
+
+/// Load the scene of `args`, mesh it and resolve the plan on the machine of `cfg`, checking
+/// every option against them (patch count, resolution per method): what `radiosity` and each
+/// point of `sweep` do before their first run.
+pub(crate) fn prepare(
+    args: &RadiosityArgs,
+    cfg: &pxpl5_config::MachineConfig,
+) -> Result<Prepared, UserError> {
     let scene: RadiosityScene = match &args.scene {
         Some(p) => pxpl5_radiosity::scene::load_radiosity_scene(p).map_err(config_cmd::report)?,
         None => pxpl5_radiosity::scenes::cornell_empty(),
@@ -325,13 +333,31 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
              machine's 16-bit patch IDs can name; use a larger patch size",
             args.patch_size,
             patches.len()
-        ))
-        .into());
+        )));
     }
     for method in args.method.methods() {
         check_resolution(method, args.resolution, &cfg.renderer)
             .map_err(|e| UserError(format!("--resolution {}: {e}", args.resolution)))?;
     }
+    let plan = Plan::new(args, cfg, &scene, &patches)?;
+    Ok(Prepared {
+        scene,
+        patches,
+        plan,
+    })
+}
+
+/// Runs every method, renders the pictures, and only then writes every output, all or nothing
+/// (`output::write_all`), and prints the report: a failure anywhere leaves the output directory
+/// as it was. Every output whose name is known is checked before the first run.
+pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
+    let watch = Watch::new(args.host_time_limit.clone());
+    let cfg = config_cmd::load(args.config.as_deref())?;
+    let Prepared {
+        scene,
+        patches,
+        plan,
+    } = prepare(args, &cfg)?;
     if scene.camera.is_some() {
         // The pictures are drawn by the polygon program: refuse a machine it cannot draw on now,
         // not after the radiosity runs.
@@ -341,7 +367,6 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
         )
         .map_err(|e| UserError(format!("the picture of the solution: {e}")))?;
     }
-    let plan = Plan::new(args, &cfg, &scene, &patches)?;
     let methods = args.method.methods();
 
     // Check every destination before the first run.
@@ -565,6 +590,16 @@ fn options_json(
     })
 }
 
+/// The share of the run's time that `resource` held the critical path.
+pub(crate) fn critical_share(stats: &RunStats, resource: Resource) -> f64 {
+    let held = stats
+        .critical_resources()
+        .iter()
+        .find(|(r, _)| *r == resource)
+        .map_or(0, |(_, t)| t.0);
+    held as f64 / stats.end.0.max(1) as f64
+}
+
 /// A percentage with enough digits to compare two methods.
 fn pct(x: f64) -> String {
     format!("{:.2} %", 100.0 * x)
@@ -701,15 +736,7 @@ fn table(c: &Comparison, host_seconds: &[f64], asked: usize) -> String {
     for resource in [Resource::Gp, Resource::Ring, Resource::Renderer] {
         t += &row(
             &format!("critical path: {}", resource.name()),
-            each(&|m| {
-                let held = m
-                    .stats
-                    .critical_resources()
-                    .iter()
-                    .find(|(r, _)| *r == resource)
-                    .map_or(0, |(_, t)| t.0);
-                pct(held as f64 / m.stats.end.0.max(1) as f64)
-            }),
+            each(&|m| pct(critical_share(&m.stats, resource))),
         );
     }
     t += &row(

@@ -256,8 +256,8 @@ pub fn is_perfetto(path: &Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("pftrace"))
 }
 
-/// Where one run's traces go.
-#[derive(Debug)]
+/// Where one run's traces go (`Default`: nowhere, as for a sweep's points).
+#[derive(Debug, Default)]
 pub struct TraceDests {
     trace: Option<Dest>,
     vcd: Option<Dest>,

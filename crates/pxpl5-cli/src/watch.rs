@@ -56,6 +56,39 @@ static PROGRESS: AtomicBool = AtomicBool::new(false);
 /// The progress bar on screen, if any: log lines are written around it ([`suspend`]).
 static BAR: Mutex<Option<ProgressBar>> = Mutex::new(None);
 
+/// Whether each run draws its own bar: a command that runs many at once (`sweep`) draws one bar
+/// of its own instead ([`hide_run_bars`], [`command_bar`]).
+static RUN_BARS: AtomicBool = AtomicBool::new(true);
+
+/// Draw no per-run bars for the rest of the process: the command shows its own.
+pub fn hide_run_bars() {
+    RUN_BARS.store(false, Ordering::Relaxed);
+}
+
+/// A bar of `len` steps for the whole command, drawn with `template` (indicatif's) and `prefix`,
+/// registered for [`suspend`]; `None` when progress is not shown (stderr is no terminal, `-q`).
+/// [`finish_bar`] takes it off the screen.
+pub fn command_bar(len: u64, prefix: &str, template: &str) -> Option<ProgressBar> {
+    if !PROGRESS.load(Ordering::Relaxed) {
+        return None;
+    }
+    let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
+    if let Ok(style) = ProgressStyle::with_template(template) {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar.set_prefix(prefix.to_string());
+    *BAR.lock().unwrap_or_else(PoisonError::into_inner) = Some(bar.clone());
+    Some(bar)
+}
+
+/// Take the command's bar off the screen.
+pub fn finish_bar(bar: Option<ProgressBar>) {
+    if let Some(bar) = bar {
+        *BAR.lock().unwrap_or_else(PoisonError::into_inner) = None;
+        bar.finish_and_clear();
+    }
+}
+
 /// Catch Ctrl-C (and SIGTERM, SIGHUP) for the rest of the process: each is counted, the
 /// [`HARD_EXIT`]-th ends the process with exit code 130. If the handler cannot be installed,
 /// they end the process as by default, which a warning says.
@@ -448,7 +481,11 @@ fn watcher(
             );
         }
         let host = t0.elapsed();
-        if bar.is_none() && host >= SHOW_AFTER && PROGRESS.load(Ordering::Relaxed) {
+        if bar.is_none()
+            && host >= SHOW_AFTER
+            && PROGRESS.load(Ordering::Relaxed)
+            && RUN_BARS.load(Ordering::Relaxed)
+        {
             bar = Some(show_bar(sim));
         }
         if let Some(bar) = &bar {

@@ -43,6 +43,8 @@ pub enum FileKind {
     TriangleScene,
     /// A scene of the radiosity program.
     RadiosityScene,
+    /// A study of `pxpl5 sweep` (its points and options).
+    Study,
 }
 
 impl fmt::Display for FileKind {
@@ -51,6 +53,7 @@ impl fmt::Display for FileKind {
             FileKind::MachineConfig => "machine config",
             FileKind::TriangleScene => "triangle scene",
             FileKind::RadiosityScene => "radiosity scene",
+            FileKind::Study => "study",
         })
     }
 }

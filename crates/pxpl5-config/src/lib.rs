@@ -30,7 +30,7 @@ use std::path::Path;
 use sha2::{Digest, Sha256};
 
 pub use error::{ConfigError, FileKind, SemanticError, SyntaxError};
-pub use provenance::{PROVENANCE, Provenance, Tag};
+pub use provenance::{PROVENANCE, PlausibleRange, Provenance, Tag};
 pub use schema::*;
 pub use validate::{MAX_CHANNELS, MAX_COST_CYCLES, MAX_FRAME_BUFFER_SIDE, MAX_UNITS, validate};
 

@@ -163,9 +163,13 @@ fn show_puts_each_fields_provenance_above_it() {
         .position(|l| l.trim_start().starts_with("latency_cycles: 8,"))
         .expect("latency_cycles is shown");
     let entry = provenance::lookup("renderer.qee.latency_cycles").expect("has provenance");
+    // An assumed field's plausible range follows its source.
     assert_eq!(
         lines[latency - 1].trim(),
-        format!("/// [assumed] {}", entry.source)
+        format!(
+            "/// [assumed] {}; plausible range 4 to 16 (half to twice the estimate)",
+            entry.source
+        )
     );
     let channels = lines
         .iter()
@@ -810,6 +814,84 @@ fn every_leaf_field_has_exactly_one_provenance_entry() {
             entry.path
         );
     }
+}
+
+/// Every `[assumed]` field, and only those, has a plausible range (`pxpl5 sensitivity` moves it
+/// across), with the default inside it; each end as a config file writes it.
+#[test]
+fn every_assumed_field_has_a_plausible_range_about_its_default() {
+    let value: ron::Value =
+        ron::from_str(&to_ron(&default_config())).expect("to_ron parses as a ron::Value");
+    let default_of = |path: &str| -> String {
+        let mut v = &value;
+        for part in path.split('.') {
+            let ron::Value::Map(m) = v else {
+                panic!("{path}: not a section at {part}")
+            };
+            v = m
+                .iter()
+                .find(|(k, _)| **k == ron::Value::String(part.to_string()))
+                .map(|(_, x)| x)
+                .unwrap_or_else(|| panic!("{path}: no {part}"));
+        }
+        match v {
+            ron::Value::Number(n) => n.into_f64().to_string(),
+            ron::Value::String(s) => s.clone(),
+            // A unit enum variant reads back as a unit: its name is in the text.
+            _ => {
+                let leaf = path.rsplit('.').next().unwrap_or(path);
+                let text = to_ron(&default_config());
+                let line = text
+                    .lines()
+                    .find(|l| l.trim().starts_with(&format!("{leaf}:")))
+                    .unwrap_or_else(|| panic!("{path}: not in the text"));
+                line.split(':')
+                    .nth(1)
+                    .unwrap_or("")
+                    .trim()
+                    .trim_end_matches(',')
+                    .to_string()
+            }
+        }
+    };
+    let mut ranged = 0;
+    for entry in PROVENANCE {
+        match (entry.tag, entry.range) {
+            (Tag::Assumed, Some(r)) => {
+                ranged += 1;
+                assert!(!r.why.is_empty(), "{}", entry.path);
+                let d = default_of(entry.path);
+                match (
+                    r.low.parse::<f64>(),
+                    r.high.parse::<f64>(),
+                    d.parse::<f64>(),
+                ) {
+                    (Ok(lo), Ok(hi), Ok(d)) => assert!(
+                        lo <= d && d <= hi && lo < hi,
+                        "{}: default {d} outside {lo}..{hi}",
+                        entry.path
+                    ),
+                    // An enum: the default is one end, the other its alternative.
+                    _ => assert!(
+                        (d == r.low || d == r.high) && r.low != r.high,
+                        "{}: default {d}, range {} to {}",
+                        entry.path,
+                        r.low,
+                        r.high
+                    ),
+                }
+            }
+            (Tag::Assumed, None) => panic!("{} is assumed but has no plausible range", entry.path),
+            (_, Some(_)) => panic!("{} has a range but is not assumed", entry.path),
+            (_, None) => {}
+        }
+    }
+    assert!(ranged >= 30, "only {ranged} ranges");
+    // `config show` writes each range beside the field's source.
+    assert!(
+        pxpl5_config::show(&default_config())
+            .contains("plausible range 1 to 4 (a register per node up to a short pipeline)")
+    );
 }
 
 /// Leaf fields of a config file with the comment text that documents each: the comment on its
