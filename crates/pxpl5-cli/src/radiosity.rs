@@ -71,7 +71,8 @@ pub struct RadiosityArgs {
     #[arg(long, default_value_t = experiment::MAIN_JOB_PATCH_SIZE, value_parser = positive_finite)]
     pub patch_size: f64,
     /// Host threads for the Renderers' pixel work (1: all in one thread). Host work only: every
-    /// output is byte-identical whatever the number. Default: the available cores.
+    /// output is byte-identical whatever the number. Default 1: each readback waits for the
+    /// workers, and today that costs more than the second core gains (see the README).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=256))]
     pub threads: Option<u32>,
     /// Pixels across the hemisphere's disk and the hemicube's top face, 1 to 4096; the machine
