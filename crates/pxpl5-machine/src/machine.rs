@@ -507,7 +507,7 @@ impl Machine {
         let kind = match self.kinds[started.kind_index] {
             Some(c) => c,
             None => {
-                let name = format!("Renderer {}", started.kind);
+                let name = format!("Renderer {}", started.kind());
                 let c = self.categories.get(&name, Resource::Renderer);
                 self.kinds[started.kind_index] = Some(c);
                 c

@@ -287,9 +287,8 @@ impl Recorder {
     }
 
     pub(crate) fn renderer_command(&mut self, r: u32, started: &Started) {
-        let &Started {
-            kind, start, end, ..
-        } = started;
+        let &Started { start, end, .. } = started;
+        let kind = started.kind();
         if let (Some(c), Some(t)) = (&mut self.trace, &self.tracks) {
             let track = t.renderer[r as usize];
             c.slice_grouped(track, kind, start, end, self.renderer_gap);

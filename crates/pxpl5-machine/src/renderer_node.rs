@@ -47,8 +47,7 @@ struct Running {
 
 /// A command that started: what the machine records and when it completes.
 pub(crate) struct Started {
-    pub kind: &'static str,
-    /// [`pxpl5_renderer::Command::kind_index`] of the command.
+    /// [`pxpl5_renderer::Command::kind_index`] of the command ([`Started::kind`] its name).
     pub kind_index: usize,
     pub start: Tick,
     pub end: Tick,
@@ -79,6 +78,13 @@ pub(crate) struct RendererNode {
     pub profile: Profile,
     pub last_end: Tick,
     pub last_readback: bool,
+}
+
+impl Started {
+    /// The command's kind, as the board's statistics name it.
+    pub fn kind(&self) -> &'static str {
+        Command::KINDS[self.kind_index]
+    }
 }
 
 impl RendererNode {
@@ -201,7 +207,6 @@ impl RendererNode {
             last_in_message: q.last_in_message,
         });
         Ok(Some(Started {
-            kind: q.command.kind(),
             kind_index: q.command.kind_index(),
             start,
             end,
