@@ -105,7 +105,17 @@ pub fn renderer(args: &RendererArgs) -> Result<(), UserError> {
         let mut results = measure(&stream, &cfg, &levels, args.repeat)?;
         if args.instructions {
             for m in &mut results {
-                let child = renderer_child_args(args, method, m.fidelity);
+                let extra = [
+                    format!("--shots={}", args.shots),
+                    format!("--resolution={}", args.resolution),
+                    "--repeat=1".to_string(),
+                ];
+                let child = child_args(
+                    "renderer",
+                    (method, m.fidelity),
+                    args.config.as_deref(),
+                    &extra,
+                );
                 m.instructions = Some(count_instructions(&child, "*Stream::run*")?);
             }
         }
@@ -285,20 +295,23 @@ fn print_table(
     Ok(())
 }
 
-/// The arguments that make this binary run `args`' stream for one method at one level, once:
-/// what [`count_instructions`] runs under callgrind.
-fn renderer_child_args(args: &RendererArgs, method: Method, fidelity: Fidelity) -> Vec<String> {
+/// The arguments that make this binary run `bench SUBCOMMAND` once for one method at one level
+/// (with `extra` options and `config`): what [`count_instructions`] runs under callgrind.
+fn child_args(
+    subcommand: &str,
+    (method, fidelity): (Method, Fidelity),
+    config: Option<&std::path::Path>,
+    extra: &[String],
+) -> Vec<String> {
     let mut child = vec![
         "bench".to_string(),
-        "renderer".to_string(),
+        subcommand.to_string(),
         "--json".to_string(),
         format!("--method={}", method.name()),
         format!("--fidelity={}", fidelity.name()),
-        format!("--shots={}", args.shots),
-        format!("--resolution={}", args.resolution),
-        "--repeat=1".to_string(),
     ];
-    if let Some(c) = &args.config {
+    child.extend_from_slice(extra);
+    if let Some(c) = config {
         child.push(format!("--config={}", c.display()));
     }
     child
@@ -421,17 +434,12 @@ pub fn machine(args: &MachineArgs) -> Result<(), UserError> {
             }
             let mut m = best.expect("at least one run");
             if args.instructions {
-                let mut child = vec![
-                    "bench".to_string(),
-                    "machine".to_string(),
-                    "--json".to_string(),
-                    format!("--method={}", method.name()),
-                    format!("--fidelity={}", fidelity.name()),
-                    format!("--shots={}", args.shots),
-                ];
-                if let Some(c) = &args.config {
-                    child.push(format!("--config={}", c.display()));
-                }
+                let child = child_args(
+                    "machine",
+                    (method, fidelity),
+                    args.config.as_deref(),
+                    &[format!("--shots={}", args.shots)],
+                );
                 m.instructions = Some(count_instructions(&child, "*Machine::run*")?);
             }
             runs.push(m);
