@@ -15,7 +15,7 @@ use std::collections::VecDeque;
 
 use pxpl5_config::TokenPolicy;
 
-use crate::MessageId;
+use crate::{MessageId, RingLevel};
 
 /// The ring's parameters, checked by [`crate::Ring::new`].
 #[derive(Clone, Copy, Debug)]
@@ -29,6 +29,9 @@ pub(crate) struct Params {
     pub max_payload: u32,
     pub queue_words: u32,
     pub policy: TokenPolicy,
+    /// Tokens that travel ([`RingLevel::Token`]), or channels any node may take as soon as they
+    /// are free ([`RingLevel::Message`]).
+    pub level: RingLevel,
 }
 
 impl Params {
@@ -140,6 +143,10 @@ pub(crate) fn decide_at(
         "pxpl5-ring model bug on channel (any), clock {t}: clock already decided (next is {})",
         flow.next_clock
     );
+    if p.level == RingLevel::Message {
+        decide_message_level(p, out, flow, t, caps);
+        return;
+    }
     for c in 0..p.channels {
         let mut tok = flow.tokens[c as usize];
         normalise(p, &mut tok, t);
@@ -148,29 +155,14 @@ pub(crate) fn decide_at(
             let next = (q + 1) % p.nodes;
             let ready = startable(p, out, flow, q).filter(|pkt| pkt.eligible <= t);
             if let Some(&pkt) = ready {
-                let words = u64::from(pkt.words);
-                let end_tx = t + words;
-                let arrival = end_tx + p.hops(q, pkt.dst) * p.hop;
-                let release = match p.policy {
-                    TokenPolicy::EarlyRelease => end_tx,
-                    TokenPolicy::LateRelease => arrival,
-                };
+                let cap = capture(p, flow, c, pkt, t);
                 // The released token moves on from the sender: it reaches the next node one hop
                 // after release (the sender cannot take it straight back, so tokens go round).
                 tok = Token {
                     pos: next,
-                    at: release + p.hop,
+                    at: cap.release + p.hop,
                 };
-                flow.offsets[q as usize] += 1;
-                flow.in_used[pkt.dst as usize] += u64::from(pkt.reserve);
-                caps.push(Capture {
-                    channel: c,
-                    packet: pkt,
-                    start: t,
-                    end_tx,
-                    arrival,
-                    release,
-                });
+                caps.push(cap);
             } else {
                 tok = Token {
                     pos: next,
@@ -183,6 +175,73 @@ pub(crate) fn decide_at(
     flow.next_clock = t + 1;
 }
 
+/// Starts `pkt` on channel `c` at clock `t`: its timing, and the flow's bookkeeping (the packet
+/// leaves its queue's unstarted part, its message's credit is reserved at the destination).
+fn capture(p: &Params, flow: &mut Flow, c: u32, pkt: Packet, t: u64) -> Capture {
+    let end_tx = t + u64::from(pkt.words);
+    let arrival = end_tx + p.hops(pkt.src, pkt.dst) * p.hop;
+    let release = match p.policy {
+        TokenPolicy::EarlyRelease => end_tx,
+        TokenPolicy::LateRelease => arrival,
+    };
+    flow.offsets[pkt.src as usize] += 1;
+    flow.in_used[pkt.dst as usize] += u64::from(pkt.reserve);
+    Capture {
+        channel: c,
+        packet: pkt,
+        start: t,
+        end_tx,
+        arrival,
+        release,
+    }
+}
+
+/// The message-level model's decisions at clock `t` (crate doc, "ring levels"): every channel
+/// free at `t`, in increasing number, starts the startable, eligible packet that became eligible
+/// first (ties: the lower message number), from whichever node holds it. A free channel has no
+/// position: a node never waits for a token to travel to it, only for a channel to be free and
+/// for credit. Its token's `at` is the clock from which the channel is free and its `pos` the
+/// last sender.
+fn decide_message_level(
+    p: &Params,
+    out: &[VecDeque<Packet>],
+    flow: &mut Flow,
+    t: u64,
+    caps: &mut Vec<Capture>,
+) {
+    for c in 0..p.channels {
+        if flow.tokens[c as usize].at > t {
+            continue;
+        }
+        let first = (0..p.nodes)
+            .filter_map(|q| startable(p, out, flow, q))
+            .filter(|pkt| pkt.eligible <= t)
+            .min_by_key(|pkt| (pkt.eligible, pkt.msg))
+            .copied();
+        let Some(pkt) = first else {
+            break;
+        };
+        let cap = capture(p, flow, c, pkt, t);
+        flow.tokens[c as usize] = Token {
+            pos: pkt.src,
+            at: cap.release,
+        };
+        caps.push(cap);
+    }
+    flow.next_clock = t + 1;
+}
+
+/// The message-level model's [`next_decision`]: the first clock at which a channel is free and a
+/// startable packet eligible.
+fn next_message_level_decision(p: &Params, out: &[VecDeque<Packet>], flow: &Flow) -> Option<u64> {
+    let eligible = (0..p.nodes)
+        .filter_map(|q| startable(p, out, flow, q))
+        .map(|pkt| pkt.eligible)
+        .min()?;
+    let free = flow.tokens.iter().map(|tok| tok.at).min()?;
+    Some(eligible.max(free).max(flow.next_clock))
+}
+
 /// The first clock at or after `flow.next_clock` at which some token stands at a node that can
 /// start a packet, or `None` if no packet can ever start without a new send or consume.
 ///
@@ -191,6 +250,9 @@ pub(crate) fn decide_at(
 /// arithmetic sequence `at + j*hop + m*lap` and the first one at or after the packet's eligibility
 /// is found by one division. This is what lets the ring skip idle stretches.
 pub(crate) fn next_decision(p: &Params, out: &[VecDeque<Packet>], flow: &Flow) -> Option<u64> {
+    if p.level == RingLevel::Message {
+        return next_message_level_decision(p, out, flow);
+    }
     let lap = p.lap();
     let mut best: Option<u64> = None;
     for q in 0..p.nodes {
@@ -224,6 +286,7 @@ mod tests {
             max_payload: 16,
             queue_words: 64,
             policy: TokenPolicy::EarlyRelease,
+            level: RingLevel::Token,
         }
     }
 

@@ -95,6 +95,16 @@
 //! the clocks from its eligible edge to the first edge at which a free token of any channel stands
 //! at the sender (`w = 0` when one already stands there). [`idle_latency`] is that formula.
 //!
+//! **Ring levels.** The model above is the [`RingLevel::Token`] level, the reference. The
+//! [`RingLevel::Message`] level is an approximation for studies that trade accuracy for host
+//! time: a channel has no travelling token, so a node never waits for one to come round. Each
+//! channel is free from the clock its previous packet released it (by the same `token_policy`);
+//! at each clock every free channel, in increasing number, starts the waiting packet that became
+//! eligible first (ties: the lower [`MessageId`]) from whichever node's queue head holds it, under
+//! the same queues, credit, packet sizes, transmission and hop latency. What it leaves out is
+//! token-by-token contention: the token's travel and which node it reaches first. Its error
+//! against the token level is measured, never assumed (`pxpl5 tradeoff`).
+//!
 //! **Statistics** ([`RingStats`]): per channel, header and payload words, packets, messages and
 //! busy clocks (clocks in which a sender was putting a word on the channel) and utilisation; per
 //! node, queue high-water marks, traffic, and token wait: the clocks from when a packet was both
@@ -160,6 +170,32 @@ pub struct Delivery {
     pub delivered: Tick,
     /// The channels its packets went on: bit `c` for channel `c` (channels above 63 share bit 63).
     pub channels: u64,
+}
+
+/// How the ring is simulated (crate doc, "ring levels"): the host's choice, never the machine's.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum RingLevel {
+    /// Tokens travel hop by hop and are captured where they stand: the reference.
+    #[default]
+    Token,
+    /// Latency and bandwidth per message: a free channel goes to the packet eligible first,
+    /// wherever it waits. Approximate.
+    Message,
+}
+
+impl RingLevel {
+    /// The level's name in options, statistics and reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            RingLevel::Token => "token",
+            RingLevel::Message => "message",
+        }
+    }
+
+    /// Whether results at this level may differ from the reference's.
+    pub fn is_approximate(self) -> bool {
+        self != RingLevel::Token
+    }
 }
 
 /// Where a channel's token is (see [`Ring::token_at`]).

@@ -9,7 +9,7 @@ use pxpl5_sim::{ClockDomain, Cycles, Tick};
 
 use crate::engine::{self, Capture, Flow, Packet, Params, Token};
 use crate::stats::{ChannelStats, NodeStats, RingStats, TotalStats, ratio};
-use crate::{Delivery, MessageId, NodeId, RingError, TokenLocation};
+use crate::{Delivery, MessageId, NodeId, RingError, RingLevel, TokenLocation};
 
 /// Something fixed when a packet starts and due at a later clock.
 #[derive(Clone, Copy, Debug)]
@@ -109,6 +109,11 @@ impl Ring {
     /// packet and queue sizes and token policy of `cfg`, at time zero with every queue empty and
     /// the token of channel `c` at node `c * nodes / channels` (rounded down).
     pub fn new(cfg: &RingConfig, nodes: u32) -> Result<Ring, RingError> {
+        Ring::with_level(cfg, nodes, RingLevel::Token)
+    }
+
+    /// [`Ring::new`], simulated at `level` (crate doc, "ring levels").
+    pub fn with_level(cfg: &RingConfig, nodes: u32, level: RingLevel) -> Result<Ring, RingError> {
         if nodes < 2 {
             return Err(bad("nodes", nodes, "a ring needs at least 2 nodes"));
         }
@@ -149,6 +154,7 @@ impl Ring {
             max_payload: cfg.max_message_words,
             queue_words: cfg.queue_words,
             policy: cfg.token_policy,
+            level,
         };
         let n = nodes as usize;
         // [assumed] tokens spread evenly at time zero (crate doc, "tokens").
@@ -201,6 +207,11 @@ impl Ring {
     /// Number of channels.
     pub fn channels(&self) -> u32 {
         self.p.channels
+    }
+
+    /// The level the ring is simulated at.
+    pub fn level(&self) -> RingLevel {
+        self.p.level
     }
 
     fn check_node(&self, node: NodeId) -> Result<u32, RingError> {
@@ -617,6 +628,11 @@ impl Ring {
             && t < h.release
         {
             return Some(TokenLocation::Held { by: NodeId(h.by) });
+        }
+        if self.p.level == RingLevel::Message {
+            // A free channel has no position at this level: it stands wherever a packet waits.
+            // It is reported at its last sender.
+            return Some(TokenLocation::At(NodeId(tok.pos)));
         }
         let n = self.p.nodes;
         let prev = |q: u32| NodeId((q + n - 1) % n);

@@ -1,11 +1,11 @@
 //! Property tests: on random configs and random streams of sends, advances and consumes, the fast
 //! ring (`advance`, which skips clocks arithmetically) and the clock-by-clock reference
 //! (`advance_clock_by_clock`) agree exactly on every answer; `next_event_tick` is exact; and no
-//! delivery beats the idle-ring formula.
+//! delivery beats the idle-ring formula; at both ring levels.
 
 use proptest::prelude::*;
 use pxpl5_config::{NodeOrder, RingConfig, TokenPolicy};
-use pxpl5_ring::{MessageId, NodeId, Ring};
+use pxpl5_ring::{MessageId, NodeId, Ring, RingLevel};
 use pxpl5_sim::{Cycles, Tick};
 
 /// 20 MHz: 50,000 ps per channel clock.
@@ -112,9 +112,13 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(500))]
 
     #[test]
-    fn fast_and_clock_by_clock_rings_agree((cfg, nodes) in config(), ops in prop::collection::vec(op(), 1..60)) {
-        let mut fast = Ring::new(&cfg, nodes).unwrap();
-        let mut slow = Ring::new(&cfg, nodes).unwrap();
+    fn fast_and_clock_by_clock_rings_agree(
+        (cfg, nodes) in config(),
+        level in prop_oneof![Just(RingLevel::Token), Just(RingLevel::Message)],
+        ops in prop::collection::vec(op(), 1..60),
+    ) {
+        let mut fast = Ring::with_level(&cfg, nodes, level).unwrap();
+        let mut slow = Ring::with_level(&cfg, nodes, level).unwrap();
         let mut delivered: Vec<MessageId> = Vec::new();
         let hop = u64::from(cfg.hop_latency_cycles);
         for op in ops {

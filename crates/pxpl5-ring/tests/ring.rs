@@ -4,7 +4,8 @@
 
 use pxpl5_config::{NodeOrder, RingConfig, TokenPolicy};
 use pxpl5_ring::{
-    Delivery, MessageId, NodeId, Ring, RingError, TokenLocation, idle_delivery, idle_latency,
+    Delivery, MessageId, NodeId, Ring, RingError, RingLevel, TokenLocation, idle_delivery,
+    idle_latency,
 };
 use pxpl5_sim::{Cycles, Tick};
 
@@ -273,6 +274,53 @@ fn contention_on_one_channel_delays_the_second_sender_exactly() {
             assert_eq!(ring.token_at(0), Some(TokenLocation::At(NodeId(3))));
         }
     }
+}
+
+/// The message-level ring: the same two messages as above, with no token to wait for. A starts
+/// at once; B, sent at the same clock, gets the one channel when A releases it (it became
+/// eligible at the same clock, and A's message number is lower), with no hops of token travel.
+#[test]
+fn the_message_level_has_no_token_travel_but_keeps_the_channel_busy() {
+    for policy in [TokenPolicy::EarlyRelease, TokenPolicy::LateRelease] {
+        for hop in [1u64, 2] {
+            let mut c = cfg(1);
+            c.token_policy = policy;
+            c.hop_latency_cycles = hop as u32;
+            let mut ring = Ring::with_level(&c, 8, RingLevel::Message).unwrap();
+            assert_eq!(ring.level(), RingLevel::Message);
+            let a = send(&mut ring, Tick::ZERO, 2, 7, 50); // 5 hops, W = 51
+            let b = send(&mut ring, Tick::ZERO, 5, 1, 30); // 4 hops, W = 31
+            let d = drain(&mut ring);
+            let release_a = match policy {
+                TokenPolicy::EarlyRelease => 51,
+                TokenPolicy::LateRelease => 51 + 5 * hop,
+            };
+            assert_eq!((d[0].id, d[0].started), (a, at(0)));
+            assert_eq!(d[0].delivered, at(51 + 5 * hop));
+            assert_eq!((d[1].id, d[1].started), (b, at(release_a)));
+            assert_eq!(d[1].delivered, at(release_a + 31 + 4 * hop));
+            let stats = ring.stats();
+            assert_eq!(stats.nodes[5].token_wait, Cycles(release_a));
+            assert_eq!(stats.nodes[2].token_wait, Cycles(0));
+            // The token level makes B wait for the token's travel as well: the message level
+            // is never slower here, and the difference is exactly that travel.
+            let mut token = Ring::new(&c, 8).unwrap();
+            send(&mut token, Tick::ZERO, 2, 7, 50);
+            send(&mut token, Tick::ZERO, 5, 1, 30);
+            let t = drain(&mut token);
+            assert_eq!(t[1].started, at(2 * hop + release_a + 3 * hop));
+        }
+    }
+    // Four channels carry four waiting messages at once, whatever nodes they wait at, where the
+    // token level makes each wait for a token to reach it.
+    let mut ring = Ring::with_level(&cfg(4), 16, RingLevel::Message).unwrap();
+    for src in [1, 2, 3, 9] {
+        send(&mut ring, Tick::ZERO, src, 0, 10);
+    }
+    let d = drain(&mut ring);
+    assert_eq!(d.len(), 4);
+    assert!(d.iter().all(|d| d.started == at(0)), "{d:?}");
+    assert_eq!(ring.stats().total.token_wait, Cycles(0));
 }
 
 #[test]
