@@ -20,18 +20,24 @@ use crate::command::{Bit, Command, Field, Rect};
 use crate::cycles::{backing_store_blocks, backing_store_cycles, cycle_cost};
 use crate::engine::bit::BitEngine;
 use crate::engine::integer::IntegerEngine;
-use crate::engine::{Geometry, PixelEngine, QeeSink};
+use crate::engine::{Geometry, PixelEngine, QeeSink, Registers};
 use crate::qee::{COEFFICIENT_NAMES, Streams};
 use crate::readback::{ReadbackMessage, pack_messages};
 use crate::workers::{Remote, Workers};
 
-/// How the pixel work is simulated. Results and cycle counts are identical at every level.
+/// How the pixel work is simulated. Cycle counts are identical at every level, since they come
+/// from the cycle table alone; results are identical at every exact level.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Fidelity {
     /// Every micro-cycle on bit-planes: the reference.
     Bit,
     /// Per-pixel integer arithmetic with the same semantics.
     Integer,
+    /// No pixel work at all: every command costs its cycles and changes nothing, and a readback
+    /// carries zeros in messages of the right size. Approximate: a program whose control flow
+    /// depends on pixel values (item buffers) must get them elsewhere, and its timing may then
+    /// differ from an exact level's; the error is measured (`pxpl5 tradeoff`), never assumed.
+    Timing,
 }
 
 impl Fidelity {
@@ -39,7 +45,13 @@ impl Fidelity {
         match self {
             Fidelity::Bit => "bit",
             Fidelity::Integer => "integer",
+            Fidelity::Timing => "timing",
         }
+    }
+
+    /// Whether the level simulates pixel values (every level but [`Fidelity::Timing`]).
+    pub fn has_pixels(self) -> bool {
+        self != Fidelity::Timing
     }
 }
 
@@ -49,7 +61,10 @@ impl std::str::FromStr for Fidelity {
         match s {
             "bit" => Ok(Fidelity::Bit),
             "integer" => Ok(Fidelity::Integer),
-            _ => Err(format!("unknown fidelity `{s}` (expected bit or integer)")),
+            "timing" => Ok(Fidelity::Timing),
+            _ => Err(format!(
+                "unknown fidelity `{s}` (expected bit, integer or timing)"
+            )),
         }
     }
 }
@@ -223,6 +238,63 @@ pub struct Board {
 enum Side {
     Here(Box<Pixels>),
     Away(Remote),
+    /// Nowhere: [`Fidelity::Timing`].
+    Blank(Blank),
+}
+
+/// What a board without pixel state ([`Fidelity::Timing`]) needs to answer a readback: the sizes
+/// of its messages. It reads as a board that never ran a command: memory zero, every pixel
+/// enabled, flags clear.
+struct Blank {
+    cfg: RendererConfig,
+    ring_word_bits: u32,
+    max_message_words: u32,
+}
+
+impl Blank {
+    fn apply(&self, cmd: &Command) -> Option<ReadbackStream> {
+        let Command::Readback {
+            field,
+            rect,
+            dest,
+            tag,
+        } = *cmd
+        else {
+            return None;
+        };
+        let zeros = vec![0; rect.width as usize * rect.height as usize];
+        Some(ReadbackStream {
+            dest,
+            tag,
+            bits: field.bits,
+            messages: pack_messages(
+                &zeros,
+                rect,
+                field.bits,
+                self.ring_word_bits,
+                self.max_message_words,
+            ),
+        })
+    }
+
+    fn pixels(&self) -> usize {
+        self.cfg.width as usize * self.cfg.height as usize
+    }
+
+    fn image(&self) -> BoardImage {
+        let geometry = Geometry::new(self.cfg.width, self.cfg.height);
+        let registers = Registers::new(geometry, self.cfg.flag_registers as usize);
+        BoardImage {
+            enable: registers.enable,
+            flags: registers.flags,
+            memory: vec![0; geometry.groups * self.cfg.pixel_memory_bits as usize],
+            backing_store: BTreeMap::new(),
+        }
+    }
+
+    fn bit_values(&self, b: Bit) -> Vec<bool> {
+        vec![b == Bit::Enable; self.pixels()]
+    }
 }
 
 /// A board's pixel state and the work that changes it: everything but time. A board's pixels
@@ -255,6 +327,14 @@ impl Board {
             Fidelity::Integer => {
                 Engine::Integer(IntegerEngine::new(geometry, cfg.pixel_memory_bits, flags))
             }
+            Fidelity::Timing => {
+                let blank = Blank {
+                    cfg: cfg.clone(),
+                    ring_word_bits,
+                    max_message_words: u32::MAX,
+                };
+                return Board::keeping_time(cfg, Side::Blank(blank));
+            }
         };
         let pixels = Pixels {
             cfg: cfg.clone(),
@@ -267,6 +347,11 @@ impl Board {
             active: Vec::new(),
             streams: Streams::new(&crate::QeeExpr::default(), (0, 0), 0, 0),
         };
+        Board::keeping_time(cfg, Side::Here(Box::new(pixels)))
+    }
+
+    /// A board at cycle zero whose pixel work is `pixels`.
+    fn keeping_time(cfg: &RendererConfig, pixels: Side) -> Board {
         Board {
             cfg: cfg.clone(),
             free_at: Cycles::ZERO,
@@ -274,7 +359,7 @@ impl Board {
             in_flight: Vec::new(),
             stats: BoardStats::default(),
             kinds: Default::default(),
-            pixels: Side::Here(Box::new(pixels)),
+            pixels,
         }
     }
 
@@ -293,6 +378,7 @@ impl Board {
     pub fn stream_readbacks(mut self, max_message_words: u32) -> Board {
         match &mut self.pixels {
             Side::Here(p) => p.max_message_words = max_message_words,
+            Side::Blank(b) => b.max_message_words = max_message_words,
             Side::Away(_) => panic!("stream_readbacks after on_workers: set it first"),
         }
         self
@@ -349,6 +435,7 @@ impl Board {
         let readback = match &mut self.pixels {
             Side::Here(p) => p.apply(cmd),
             Side::Away(r) => r.apply(cmd),
+            Side::Blank(b) => b.apply(cmd),
         };
 
         self.free_at = end;
@@ -561,6 +648,7 @@ impl Board {
         match &self.pixels {
             Side::Here(p) => p.image(),
             Side::Away(r) => r.image(),
+            Side::Blank(b) => b.image(),
         }
     }
 
@@ -569,6 +657,7 @@ impl Board {
         match &self.pixels {
             Side::Here(p) => p.field_values(field),
             Side::Away(r) => r.field_values(field),
+            Side::Blank(b) => vec![0; b.pixels()],
         }
     }
 
@@ -577,6 +666,7 @@ impl Board {
         match &self.pixels {
             Side::Here(p) => p.bit_values(b),
             Side::Away(r) => r.bit_values(b),
+            Side::Blank(blank) => blank.bit_values(b),
         }
     }
 }

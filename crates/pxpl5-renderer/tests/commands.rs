@@ -1,6 +1,6 @@
 //! Every IGC command: its effect on pixels and its cycle count, asserted together, at both
-//! fidelity levels (each check runs the same commands on a `bit` and an `integer` board and
-//! requires identical state).
+//! exact fidelity levels (each check runs the same commands on a `bit` and an `integer` board and
+//! requires identical state), and its time at the `timing` level, which must not differ.
 
 use pxpl5_config::RendererConfig;
 use pxpl5_renderer::{
@@ -25,12 +25,39 @@ fn boards(setup: &[Command]) -> [Board; 2] {
 }
 
 /// Run `cmd` on both levels; assert its cycles (end - start) and that the levels agree; return
-/// the bit board.
+/// the bit board. The timing level, which does no pixel work, must time it the same and send a
+/// readback's messages with the same rows and sizes, all zeros.
 fn check(setup: &[Command], cmd: Command, cycles: u64) -> Board {
     let [mut bit, mut integer] = boards(setup);
     let eb = bit.execute(&cmd).unwrap();
     let ei = integer.execute(&cmd).unwrap();
     assert_eq!(eb, ei, "{cmd:?}: bit and integer executions differ");
+    let mut timing = Board::new(&cfg(), 32, Fidelity::Timing);
+    for c in setup {
+        timing.execute(c).unwrap();
+    }
+    let et = timing.execute(&cmd).unwrap();
+    assert_eq!(
+        (et.start, et.end, et.stall),
+        (eb.start, eb.end, eb.stall),
+        "{cmd:?}: the timing level's time"
+    );
+    assert_eq!(
+        timing.stats(),
+        bit.stats(),
+        "{cmd:?}: the timing level's stats"
+    );
+    let shape = |r: &pxpl5_renderer::ReadbackStream| {
+        let rows: Vec<_> = r.messages.iter().map(|m| (m.rect, m.words.len())).collect();
+        (r.dest, r.tag, r.bits, rows)
+    };
+    assert_eq!(
+        et.readback.as_ref().map(shape),
+        eb.readback.as_ref().map(shape)
+    );
+    if let Some(r) = &et.readback {
+        assert!(r.messages.iter().all(|m| m.words.iter().all(|&w| w == 0)));
+    }
     assert_eq!((eb.end - eb.start).0, cycles, "{cmd:?}: cycles");
     assert_eq!(
         bit.image(),
