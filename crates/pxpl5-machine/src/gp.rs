@@ -176,6 +176,8 @@ pub struct Gp {
     pub(crate) renderers: u32,
     pub(crate) costs: GpCostTable,
     pub(crate) renderer_cfg: pxpl5_config::RendererConfig,
+    /// Whether the Renderers simulate pixel values (`RunOptions::fidelity`).
+    pub(crate) pixels: bool,
     pub(crate) ring_word_bits: u32,
     pub(crate) max_message_words: u32,
     pub(crate) frame_buffer: (u32, u32),
@@ -308,6 +310,15 @@ impl Gp {
     /// know to generate commands.
     pub fn renderer_config(&self) -> &pxpl5_config::RendererConfig {
         &self.renderer_cfg
+    }
+
+    /// Whether the Renderers' readbacks carry pixel values. At the approximate `timing` fidelity
+    /// level they carry zeros (in messages of the right size, at the right time), so a program
+    /// whose results come from pixel values must compute them some other way, outside
+    /// simulated time, and say so. Host knowledge, not the machine's: a program's simulated
+    /// work and charges must not depend on it.
+    pub fn renderers_have_pixels(&self) -> bool {
+        self.pixels
     }
 
     /// Bits per ring word.

@@ -110,7 +110,7 @@ impl Machine {
     ) -> Result<Machine, RunError> {
         let units = node_order(cfg);
         let positions = Positions::new(&units);
-        let ring = Ring::new(&cfg.ring, units.len() as u32)
+        let ring = Ring::with_level(&cfg.ring, units.len() as u32, options.ring_level)
             .map_err(|e| RunError::Config(e.to_string()))?;
         let gp_clock = clock(cfg.gp.clock_hz, "gp.clock_hz")?;
         let r_clock = clock(cfg.renderer.clock_hz, "renderer.clock_hz")?;
@@ -123,6 +123,7 @@ impl Machine {
                     renderers: cfg.renderer.count,
                     costs: cfg.gp.costs.clone(),
                     renderer_cfg: cfg.renderer.clone(),
+                    pixels: options.fidelity.has_pixels(),
                     ring_word_bits: cfg.ring.word_bits,
                     max_message_words: cfg.ring.max_message_words,
                     frame_buffer: fb,
@@ -598,6 +599,7 @@ impl Machine {
             config: self.cfg.name.clone(),
             config_hash: pxpl5_config::config_hash(&self.cfg),
             fidelity: self.options.fidelity,
+            ring_level: self.options.ring_level,
             end,
             gps,
             renderers,

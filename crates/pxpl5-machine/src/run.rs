@@ -4,7 +4,7 @@
 use std::sync::Arc;
 
 use pxpl5_renderer::Fidelity;
-use pxpl5_ring::RingError;
+use pxpl5_ring::{RingError, RingLevel};
 use pxpl5_sim::Tick;
 
 use crate::frame_buffer::FrameBufferImage;
@@ -16,7 +16,10 @@ use crate::stats::RunStats;
 /// Options of one run.
 #[derive(Clone, Debug)]
 pub struct RunOptions {
+    /// How the Renderers' pixel work is simulated.
     pub fidelity: Fidelity,
+    /// How the ring is simulated: by tokens (exact) or per message (approximate).
+    pub ring_level: RingLevel,
     /// Simulated time after which the run is stopped with an error.
     pub max_time: Tick,
     /// Where the host watches the run and may ask it to stop; `None` runs it unwatched. It never
@@ -32,6 +35,7 @@ impl Default for RunOptions {
     fn default() -> RunOptions {
         RunOptions {
             fidelity: Fidelity::Integer,
+            ring_level: RingLevel::Token,
             // 10 simulated seconds: far beyond any shipped program's run.
             max_time: Tick(10_000_000_000_000),
             monitor: None,

@@ -4,7 +4,7 @@
 //! the caller's to print, apart, and never enter the JSON.
 
 use pxpl5_renderer::{BoardStats, Fidelity};
-use pxpl5_ring::RingStats;
+use pxpl5_ring::{RingLevel, RingStats};
 use pxpl5_sim::{Cycles, Tick};
 use serde_json::{Value, json};
 
@@ -50,6 +50,7 @@ pub struct RunStats {
     pub config: String,
     pub config_hash: String,
     pub fidelity: Fidelity,
+    pub ring_level: RingLevel,
     /// Simulated time at which the last unit finished.
     pub end: Tick,
     pub gps: Vec<GpStats>,
@@ -182,6 +183,7 @@ impl RunStats {
             "config": self.config,
             "config_hash": self.config_hash,
             "fidelity": self.fidelity.name(),
+            "ring_level": self.ring_level.name(),
             "simulated_ps": self.end.0,
             "critical_path": critical,
             "phases": phases,
@@ -200,6 +202,26 @@ impl RunStats {
         })
     }
 
+    /// Whether the run was simulated at an approximate level (Renderer or ring), so that its
+    /// results may differ from an exact run's.
+    pub fn approximate(&self) -> bool {
+        !self.fidelity.has_pixels() || self.ring_level.is_approximate()
+    }
+
+    /// The levels the run was simulated at, as its reports name them: the Renderer's fidelity
+    /// level alone for an exact run (the ring at its token level), else both, marked approximate.
+    pub fn levels(&self) -> String {
+        if self.approximate() {
+            format!(
+                "{}, ring level {} (APPROXIMATE: results may differ from an exact run's)",
+                self.fidelity.name(),
+                self.ring_level.name()
+            )
+        } else {
+            self.fidelity.name().to_string()
+        }
+    }
+
     /// A readable summary table.
     pub fn table(&self) -> String {
         let mut out = String::new();
@@ -210,7 +232,7 @@ impl RunStats {
             self.config,
             self.config_hash,
             ms(self.end),
-            self.fidelity.name(),
+            self.levels(),
         );
         out += "\ncritical path                          ms   share %\n";
         for p in &self.critical_path {

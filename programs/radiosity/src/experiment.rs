@@ -59,8 +59,7 @@ impl Default for Settings {
                 // 1,000 simulated seconds, far beyond the machine's default of 10: a fine mesh
                 // with many shots may need it, and a runaway program still stops.
                 max_time: Tick(1_000_000_000_000_000),
-                monitor: None,
-                threads: 1,
+                ..RunOptions::default()
             },
         }
     }

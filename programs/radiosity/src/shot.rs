@@ -18,6 +18,7 @@ use pxpl5_geom::DVec3;
 use pxpl5_machine::{CommandBatch, Cost, Gp, Message, Op, Payload, ProgramError, Tag, Unit};
 use pxpl5_renderer::{Command, Rect, readback};
 
+use crate::exact;
 use crate::views::{
     Cull, EdgeRule, Face, HemisphereDepth, ShooterFrame, ViewFields, hemicube_delta_ff,
     hemicube_polygon, hemisphere_delta_ff, hemisphere_polygon, view_setup, w_table,
@@ -660,6 +661,9 @@ pub async fn shoot(
             }
         }
     }
+    if !gp.renderers_have_pixels() {
+        return Ok(exact_partials(shooters, receivers));
+    }
     let mut partial = vec![Partial::new(); shooters.len()];
     for (v, sums) in views.iter().zip(by_view) {
         for (id, f) in sums {
@@ -667,6 +671,31 @@ pub async fn shoot(
         }
     }
     Ok(partial)
+}
+
+/// The form factors of the Renderers' `timing` fidelity level, whose readbacks carry no IDs: per
+/// shooter, the exact point-to-polygon form factor of every receiver this GP owns (0, and left
+/// out, for one wholly behind the shooter). Computed on the host, outside simulated time; the GP
+/// was charged for accumulating its bands as on an exact level. It ignores occlusion, so it is
+/// exact only in a scene where no surface can hide another, and it moves the exchange's records
+/// from the GPs whose bands saw a receiver to the receiver's owner: both are part of the level's
+/// error, measured by `pxpl5 tradeoff` against an exact level.
+fn exact_partials(shooters: &[Shooter], receivers: &[Receiver]) -> Vec<Partial> {
+    shooters
+        .iter()
+        .map(|s| {
+            receivers
+                .iter()
+                .map(|r| {
+                    (
+                        r.id,
+                        exact::point_to_polygon(s.point, s.normal, &r.vertices),
+                    )
+                })
+                .filter(|&(_, f)| f > 0.0)
+                .collect()
+        })
+        .collect()
 }
 
 /// Every GP's drawing of `view` has executed, as this GP, its board's coordinator, has heard:
