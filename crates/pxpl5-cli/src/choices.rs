@@ -9,6 +9,7 @@ use clap::ValueEnum;
 use pxpl5_radiosity::shot::Method;
 use pxpl5_radiosity::views::{EdgeRule, HemisphereDepth};
 use pxpl5_renderer::Fidelity;
+use pxpl5_ring::RingLevel;
 
 /// `--fidelity` of `run` and `radiosity`: one Renderer fidelity level.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -17,6 +18,7 @@ pub enum FidelityArg {
     // `word`, the level's name until it was renamed, stays a hidden alias for existing scripts.
     #[value(alias = "word")]
     Integer,
+    Timing,
 }
 
 impl From<FidelityArg> for Fidelity {
@@ -24,6 +26,24 @@ impl From<FidelityArg> for Fidelity {
         match f {
             FidelityArg::Bit => Fidelity::Bit,
             FidelityArg::Integer => Fidelity::Integer,
+            FidelityArg::Timing => Fidelity::Timing,
+        }
+    }
+}
+
+/// `--ring-level` of `run` and `radiosity`: how the ring is simulated.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum)]
+pub enum RingLevelArg {
+    #[default]
+    Token,
+    Message,
+}
+
+impl From<RingLevelArg> for RingLevel {
+    fn from(r: RingLevelArg) -> RingLevel {
+        match r {
+            RingLevelArg::Token => RingLevel::Token,
+            RingLevelArg::Message => RingLevel::Message,
         }
     }
 }

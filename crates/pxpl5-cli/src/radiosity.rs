@@ -33,7 +33,9 @@ use pxpl5_radiosity::shot::{FfOptions, Method, check_resolution};
 use pxpl5_sim::Tick;
 
 use crate::UserError;
-use crate::choices::{Delta, DepthArg, EdgeRuleArg, FidelityArg, FormFactorMethod, Methods};
+use crate::choices::{
+    Delta, DepthArg, EdgeRuleArg, FidelityArg, FormFactorMethod, Methods, RingLevelArg,
+};
 use crate::config_cmd;
 use crate::failure::Failure;
 use crate::output::{self, out, outln};
@@ -111,9 +113,15 @@ pub struct RadiosityArgs {
     /// Output directory.
     #[arg(long, default_value = "out/radiosity")]
     pub out: PathBuf,
-    /// Renderer fidelity level.
+    /// Renderer fidelity level: bit or integer (exact, identical results and cycles), or timing
+    /// (approximate: no pixel work, form factors from the exact formula on the host; only for a
+    /// scene where no surface hides another).
     #[arg(long, value_enum, default_value_t = FidelityArg::Integer)]
     pub fidelity: FidelityArg,
+    /// Ring level: token (exact: tokens travel hop by hop) or message (approximate: no token
+    /// travel, latency and bandwidth per message).
+    #[arg(long, value_enum, default_value_t = RingLevelArg::Token)]
+    pub ring_level: RingLevelArg,
     #[command(flatten)]
     pub traces: TraceArgs,
     /// Write the item (ID) buffers of these shots (0-based, comma-separated) as PNGs:
@@ -174,6 +182,7 @@ impl RadiosityArgs {
             target_error: plan.until_error,
             run: RunOptions {
                 fidelity: self.fidelity.into(),
+                ring_level: self.ring_level.into(),
                 max_time: self.time_limit,
                 monitor: None,
                 threads: crate::run::host_threads(self.threads),
@@ -334,6 +343,14 @@ pub(crate) fn prepare(
              machine's 16-bit patch IDs can name; use a larger patch size",
             args.patch_size,
             patches.len()
+        )));
+    }
+    if args.fidelity == FidelityArg::Timing && !scene.unoccluded() {
+        return Err(UserError(format!(
+            "--fidelity timing: scene {} has surfaces that can hide others, and the timing \
+             level's form factors come from the exact formula without occlusion; use bit or \
+             integer",
+            scene.name
         )));
     }
     for method in args.method.methods() {
@@ -588,6 +605,7 @@ fn options_json(
         "rotation_seed": (!args.no_rotation).then_some(args.rotation_seed),
         "depth": name(args.depth.to_possible_value()),
         "fidelity": name(args.fidelity.to_possible_value()),
+        "ring_level": name(args.ring_level.to_possible_value()),
     })
 }
 
@@ -641,6 +659,13 @@ fn table(c: &Comparison, host_seconds: &[f64], asked: usize) -> String {
             t += "accuracy: not measured (the scene can hide surfaces from others, so there is \
                   no exact reference)\n"
         }
+    }
+    if m0.stats.approximate() {
+        t += &format!(
+            "simulated at fidelity {}: the time error of these levels is measured by `pxpl5 \
+             tradeoff`\n",
+            m0.stats.levels()
+        );
     }
     for m in c.methods.iter().filter(|m| m.partial) {
         t += &format!(

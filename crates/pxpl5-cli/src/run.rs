@@ -17,7 +17,7 @@ use pxpl5_sim::Tick;
 use pxpl5_trace::TraceWindow;
 
 use crate::UserError;
-use crate::choices::{FidelityArg, ProgramArg};
+use crate::choices::{FidelityArg, ProgramArg, RingLevelArg};
 use crate::config_cmd;
 use crate::failure::Failure;
 use crate::output::{self, Dest, out, outln};
@@ -57,9 +57,14 @@ pub struct RunArgs {
     pub out: PathBuf,
     #[command(flatten)]
     pub traces: TraceArgs,
-    /// Renderer fidelity level: bit or integer (identical results and cycles).
+    /// Renderer fidelity level: bit or integer (identical results and cycles). The approximate
+    /// timing level draws no pixels, so it cannot make this program's picture: radiosity only.
     #[arg(long, value_enum, default_value_t = FidelityArg::Integer)]
     pub fidelity: FidelityArg,
+    /// Ring level: token (exact: tokens travel hop by hop) or message (approximate: no token
+    /// travel, latency and bandwidth per message).
+    #[arg(long, value_enum, default_value_t = RingLevelArg::Token)]
+    pub ring_level: RingLevelArg,
     /// Stop with an error (exit code 1) if the run passes this much simulated time (e.g. 10s,
     /// 500ms): the polygon program's runs take milliseconds. Also --max-time.
     #[arg(long, alias = "max-time", value_name = "TIME", default_value = "10s",
@@ -73,6 +78,15 @@ pub struct RunArgs {
 }
 
 pub fn run(args: &RunArgs) -> Result<(), Failure> {
+    if args.fidelity == FidelityArg::Timing {
+        return Err(UserError(
+            "--fidelity timing: the polygon program's result is its picture, and the timing \
+             level draws no pixels; use bit or integer (or --ring-level message to approximate \
+             the ring alone)"
+                .into(),
+        )
+        .into());
+    }
     let watch = Watch::new(args.host_time_limit.clone());
     let cfg = config_cmd::load(args.config.as_deref())?;
     let scene = match (&args.scene, args.triangles) {
@@ -102,6 +116,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
     let program = Polygons::new(scene);
     let options = RunOptions {
         fidelity: args.fidelity.into(),
+        ring_level: args.ring_level.into(),
         max_time: args.time_limit,
         monitor: None,
         threads: host_threads(args.threads),

@@ -2173,3 +2173,70 @@ fn trace_timeline_draws_a_row_per_track_with_the_critical_path_on_top() {
         );
     }
 }
+
+/// The approximate levels: a report says it was simulated at them, and where a level cannot give
+/// the program's result it is a user error naming the option.
+#[test]
+fn approximate_levels_are_named_and_refused_where_they_cannot_serve() {
+    let dir = std::env::temp_dir().join(format!("pxpl5-cli-test-approx-{}", std::process::id()));
+    let d = dir.to_str().unwrap();
+    let o = pxpl5(&[
+        "radiosity",
+        "--fidelity",
+        "timing",
+        "--ring-level",
+        "message",
+        "--shots",
+        "2",
+        "--patch-size",
+        "400",
+        "--resolution",
+        "16",
+        "--out",
+        d,
+    ]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let report = text(&o.stdout);
+    assert!(
+        report.contains("timing, ring level message (APPROXIMATE"),
+        "{report}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("comparison.json")).unwrap())
+            .unwrap();
+    assert_eq!(json["options"]["ring_level"], "message");
+    assert_eq!(json["methods"][0]["stats"]["ring_level"], "message");
+    assert_eq!(json["methods"][0]["stats"]["fidelity"], "timing");
+    // The polygon program's result is its picture, which the timing level does not draw.
+    let o = pxpl5(&["run", "--fidelity", "timing", "--out", d]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        text(&o.stderr).contains("--fidelity timing"),
+        "{}",
+        text(&o.stderr)
+    );
+    // Its form factors ignore occlusion: a scene with occluders is refused.
+    let o = pxpl5(&[
+        "radiosity",
+        "--fidelity",
+        "timing",
+        "--scene",
+        "programs/radiosity/scenes/cornell-box.ron",
+        "--out",
+        d,
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        text(&o.stderr).contains("hide others"),
+        "{}",
+        text(&o.stderr)
+    );
+    // The message ring draws the polygon program's picture exactly; only time may differ.
+    let o = pxpl5(&["run", "--ring-level", "message", "--out", d]);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(
+        text(&o.stdout).contains("APPROXIMATE"),
+        "{}",
+        text(&o.stdout)
+    );
+}
