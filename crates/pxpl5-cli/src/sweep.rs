@@ -17,7 +17,8 @@
 //! `OUT/rows.jsonl`, the journal. The outputs are written from the journal in point order, so
 //! they are the same bytes whatever the number of workers or the order points finish in:
 //! `sweep.csv`, `sweep.json` (every parameter and simulated result) and `study.json` (the points
-//! and their keys). Host seconds, which differ from run to run, go to `host.csv` alone.
+//! and their keys). Host seconds (the CPU time of the thread that simulated the point), which
+//! differ from run to run, go to `host.csv` alone.
 //!
 //! **Resume.** A point's key is a hash of the simulator's version, the point's machine config
 //! (its hash) and its radiosity options: a rerun with the same `--out` skips every point whose
@@ -31,6 +32,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use clap::{Args, FromArgMatches, Subcommand};
+use cpu_time::ThreadTime;
 use pxpl5_config::{FileKind, MachineConfig};
 use pxpl5_machine::Resource;
 use pxpl5_radiosity::comparison::{Comparison, MethodSummary};
@@ -382,7 +384,8 @@ fn apply_study_file(
     Ok(())
 }
 
-/// Radiosity options a sweep sets itself, or that write files a sweep does not keep.
+/// Radiosity options a sweep sets itself, that write files a sweep does not keep, or that change
+/// host work only (`threads`: a point's host seconds are its own thread's).
 const NOT_SWEPT: &[&str] = &[
     "method",
     "out",
@@ -391,6 +394,7 @@ const NOT_SWEPT: &[&str] = &[
     "vcd",
     "trace-window",
     "host-time-limit",
+    "threads",
 ];
 
 /// The radiosity command line of `study`'s point `values` (radiosity options only).
@@ -402,16 +406,20 @@ fn radiosity_argv(study: &Study, values: &[(String, String)]) -> Result<Vec<Stri
         .to_possible_value()
         .map_or(String::new(), |v| v.get_name().to_string());
     let mut argv = vec!["radiosity".to_string(), "--method".into(), method];
+    // A point's own shots or target replaces the study's.
+    let sets = |name: &str| values.iter().any(|(p, _)| p == name);
     let shots = study
         .shots
         .or(study.until_error.is_none().then_some(DEFAULT_SHOTS));
-    if let Some(n) = shots {
+    if let Some(n) = shots.filter(|_| !sets("program.shots")) {
         argv.extend(["--shots".to_string(), n.to_string()]);
     }
-    argv.extend([
-        "--until-error".to_string(),
-        number(study.until_error.unwrap_or(0.0)),
-    ]);
+    if !sets("program.until_error") {
+        argv.extend([
+            "--until-error".to_string(),
+            number(study.until_error.unwrap_or(0.0)),
+        ]);
+    }
     if let Some(c) = &study.config {
         argv.extend(["--config".to_string(), c.display().to_string()]);
     }
@@ -774,7 +782,10 @@ pub fn run_point(point: &Point) -> Result<Done, Failure> {
     let mut runs = Vec::new();
     let mut host_s = Vec::new();
     for method in point.args.method.methods() {
-        let (run, host) = radiosity::run_method(
+        // Host seconds are this thread's CPU time: the run is simulated in it (a sweep runs
+        // with one pixel thread), and other workers' points do not count, as wall time would.
+        let cpu = ThreadTime::now();
+        let (run, _wall) = radiosity::run_method(
             &watch,
             &point.cfg,
             &patches,
@@ -788,7 +799,7 @@ pub fn run_point(point: &Point) -> Result<Done, Failure> {
             return Err(Failure::Interrupted(format!("{label}: interrupted")));
         }
         runs.push(run);
-        host_s.push(host);
+        host_s.push(cpu.elapsed().as_secs_f64());
     }
     let comparison = Comparison::new(
         &point.cfg,
