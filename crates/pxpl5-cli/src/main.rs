@@ -32,6 +32,7 @@ mod stability;
 mod stats_cmd;
 mod sweep;
 mod trace_cmd;
+mod tradeoff;
 mod watch;
 
 use std::path::PathBuf;
@@ -86,6 +87,7 @@ impl Command {
             Command::Plot(_) => "plot",
             Command::Sensitivity(_) => "sensitivity",
             Command::Stability(_) => "stability",
+            Command::Tradeoff(_) => "tradeoff",
             Command::Sweep(c) if c.merge.is_some() => "sweep merge",
             Command::Sweep(_) => "sweep",
         }
@@ -135,6 +137,12 @@ enum Command {
     /// QEE's fractional bits (4 to 32), the geometry's scale (1e-9 to 1e9) and a polygon's
     /// elevation (pole to horizon) move: a table and a plot.
     Stability(stability::StabilityArgs),
+    /// Speed against accuracy: the same workload (the main job, both methods) at every fidelity
+    /// level (bit, integer, the approximate timing Renderer and message-level ring) and
+    /// algorithm knob (resolution, QEE precision, depth, accuracy target): host seconds against
+    /// the error in simulated time and in radiosity, Pareto-optimal knobs marked; a table and a
+    /// plot (SVG).
+    Tradeoff(tradeoff::TradeoffArgs),
 }
 
 #[derive(Subcommand)]
@@ -247,6 +255,7 @@ fn run_command(command: Option<Command>) -> Result<(), Failure> {
                 | Command::Sweep(_)
                 | Command::Sensitivity(_)
                 | Command::Stability(_)
+                | Command::Tradeoff(_)
         )
     ) {
         watch::catch_interrupts();
@@ -268,5 +277,6 @@ fn run_command(command: Option<Command>) -> Result<(), Failure> {
         Some(Command::Plot(args)) => Ok(plot::plot(&args)?),
         Some(Command::Sensitivity(args)) => sensitivity::sensitivity(&args),
         Some(Command::Stability(args)) => stability::stability(&args),
+        Some(Command::Tradeoff(args)) => tradeoff::tradeoff(&args),
     }
 }

@@ -8,6 +8,9 @@
 //! - `pxpl5 radiosity`'s `convergence-METHOD.csv` files (one or more): the worst surface error
 //!   against shots, a series per file (per method), the error on a log scale.
 //! - `pxpl5 sensitivity`'s `sensitivity.csv`: its tornado chart.
+//! - `pxpl5 tradeoff`'s `tradeoff.csv`: the speed-accuracy frontier, host seconds against the
+//!   error in simulated time and in radiosity, every knob a point and the Pareto-optimal ones
+//!   joined, per method.
 //! - `pxpl5 stability`'s `stability.csv`: form-factor error against the swept quantity.
 //!
 //! Only the SVG backend is built (no font or bitmap crates): text is left to the SVG viewer's
@@ -28,7 +31,7 @@ use crate::output::{self, outln};
 #[derive(Args, Clone, Debug)]
 pub struct PlotArgs {
     /// CSV files: a sweep's sweep.csv, radiosity's convergence-*.csv (several: one series
-    /// each), sensitivity.csv or stability.csv.
+    /// each), sensitivity.csv, tradeoff.csv or stability.csv.
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
     /// A sweep's column for the x axis (a swept parameter); default: the first that varies.
@@ -43,10 +46,12 @@ pub struct PlotArgs {
     pub out: Option<PathBuf>,
 }
 
-/// One line of a chart.
+/// One line of a chart, or its points alone.
 pub struct Series {
     pub name: String,
     pub points: Vec<(f64, f64)>,
+    /// Whether the points are joined (false: markers only, for points in no order).
+    pub line: bool,
 }
 
 /// One chart of lines; a log axis plots log10 of its values, labelled with the values.
@@ -254,6 +259,16 @@ fn draw_chart(area: &DrawingArea<SVGBackend, Shift>, chart: &Chart) -> Result<()
         .map_err(drawing)?;
     for (k, (s, pts)) in chart.series.iter().zip(&points).enumerate() {
         let colour = COLOURS[k % COLOURS.len()];
+        if !s.line {
+            c.draw_series(
+                pts.iter()
+                    .map(|&p| Circle::new(p, 4, colour.stroke_width(2))),
+            )
+            .map_err(drawing)?
+            .label(s.name.as_str())
+            .legend(move |(x, y)| Circle::new((x + 9, y), 4, colour.stroke_width(2)));
+            continue;
+        }
         c.draw_series(LineSeries::new(pts.iter().copied(), colour.stroke_width(2)))
             .map_err(drawing)?
             .label(s.name.as_str())
@@ -458,12 +473,14 @@ pub fn plot(args: &PlotArgs) -> Result<(), UserError> {
         svg(&[convergence_chart(&tables)?], (640, 440))?
     } else if has(first, "ratio_low") && has(first, "parameter") {
         sensitivity_chart(first)?
+    } else if has(first, "time_error") && has(first, "pareto") {
+        svg(&tradeoff_charts(first)?, (560, 440))?
     } else if has(first, "ff_error") && has(first, "study") {
         svg(&stability_charts(first)?, (560, 420))?
     } else {
         return Err(UserError(format!(
             "plot: {}: not a file pxpl5 plot knows (a sweep.csv, convergence-*.csv, \
-             sensitivity.csv or stability.csv); its columns: {}",
+             sensitivity.csv, tradeoff.csv or stability.csv); its columns: {}",
             first.path.display(),
             first.columns.join(", ")
         )));
@@ -548,7 +565,11 @@ fn sweep_charts(t: &Table, x: Option<&str>, y: Option<&str>) -> Result<Vec<Chart
                 .map(|name| {
                     let mut points = by.remove(&name).unwrap_or_default();
                     points.sort_by(|a, b| a.0.total_cmp(&b.0));
-                    Series { name, points }
+                    Series {
+                        name,
+                        points,
+                        line: true,
+                    }
                 })
                 .collect())
         };
@@ -623,7 +644,11 @@ fn convergence_chart(tables: &[Table]) -> Result<Chart, UserError> {
             .strip_prefix("convergence-")
             .unwrap_or(stem)
             .to_string();
-        series.push(Series { name, points });
+        series.push(Series {
+            name,
+            points,
+            line: true,
+        });
     }
     Ok(Chart {
         title: "convergence: worst surface error against shots".into(),
@@ -666,6 +691,68 @@ pub fn sensitivity_chart(t: &Table) -> Result<String, UserError> {
     )
 }
 
+/// Errors below this are drawn at it on the frontier's log axes: an exact level's time error is
+/// exactly 0, which a log axis cannot show (0.001 %, far below any error the study reports).
+const ERROR_FLOOR: f64 = 1e-5;
+
+/// The charts of a `tradeoff.csv`: host seconds against the time error, then against the
+/// radiosity error; per method its knobs as points and its Pareto-optimal knobs joined by a line
+/// in order of host seconds.
+pub fn tradeoff_charts(t: &Table) -> Result<Vec<Chart>, UserError> {
+    let method = t.column("method", "plot")?;
+    let host = t.column("host_s", "plot")?;
+    let pareto = t.column("pareto", "plot")?;
+    let mut charts = Vec::new();
+    for (column, what) in [
+        ("time_error", "simulated time to target"),
+        ("radiosity_error", "radiosity (worst surface)"),
+    ] {
+        let y = t.column(column, "plot")?;
+        let mut methods: Vec<String> = Vec::new();
+        for r in &t.rows {
+            if !methods.contains(&r[method]) {
+                methods.push(r[method].clone());
+            }
+        }
+        let mut series = Vec::new();
+        for m in &methods {
+            let mut all = Vec::new();
+            let mut front = Vec::new();
+            for (k, r) in t.rows.iter().enumerate().filter(|(_, r)| &r[method] == m) {
+                let (Some(h), Some(e)) = (t.number(k, host)?, t.number(k, y)?) else {
+                    continue;
+                };
+                let point = (h, e.max(ERROR_FLOOR));
+                all.push(point);
+                if r[pareto] == "true" {
+                    front.push(point);
+                }
+            }
+            front.sort_by(|a, b| a.0.total_cmp(&b.0));
+            series.push(Series {
+                name: format!("{m}: every knob"),
+                points: all,
+                line: false,
+            });
+            series.push(Series {
+                name: format!("{m}: Pareto frontier"),
+                points: front,
+                line: true,
+            });
+        }
+        charts.push(Chart {
+            title: format!("error in {what} against host time"),
+            x_label: "host CPU seconds".into(),
+            y_label: format!("relative error (floor {})", tick(ERROR_FLOOR)),
+            log_x: true,
+            log_y: true,
+            series,
+            legend: SeriesLabelPosition::UpperRight,
+        });
+    }
+    Ok(charts)
+}
+
 /// The charts of a `stability.csv`: per study, the form-factor error against its quantity.
 pub fn stability_charts(t: &Table) -> Result<Vec<Chart>, UserError> {
     let study = t.column("study", "plot")?;
@@ -692,6 +779,7 @@ pub fn stability_charts(t: &Table) -> Result<Vec<Chart>, UserError> {
                 None => by.push(Series {
                     name: r[method].clone(),
                     points: vec![point],
+                    line: true,
                 }),
             }
         }
@@ -753,10 +841,12 @@ mod tests {
                 Series {
                     name: "hemisphere".into(),
                     points: vec![(1.0, 2.0), (4.0, 3.0)],
+                    line: true,
                 },
                 Series {
                     name: "hemicube".into(),
                     points: vec![(1.0, 5.0), (4.0, 1.0)],
+                    line: true,
                 },
             ],
             legend: SeriesLabelPosition::UpperRight,

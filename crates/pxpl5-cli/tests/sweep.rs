@@ -371,3 +371,96 @@ fn stability_rows_and_scale_invariance() {
             .contains("elevation_deg")
     );
 }
+
+/// `pxpl5 tradeoff` on a tiny job: the reference, the timing Renderer, the message-level ring and
+/// both. Each approximate level's reported errors are those of a direct comparison: `pxpl5
+/// radiosity` run at that level and at the reference, its time to the target and final error
+/// read from comparison.json.
+#[test]
+fn tradeoff_errors_match_a_direct_comparison() {
+    let job = [
+        "--set",
+        "program.patch_size=400",
+        "--set",
+        "program.resolution=16",
+        "--until-error",
+        "0.2",
+    ];
+    let out = dir("tradeoff");
+    let mut args = vec!["tradeoff", "--only", "timing,message"];
+    args.extend(job);
+    args.extend(["--out", out.to_str().unwrap()]);
+    let o = pxpl5(&args);
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let csv = std::fs::read_to_string(out.join("tradeoff.csv")).unwrap();
+    let rows = csv_rows(&csv);
+    // 4 knobs x 2 methods.
+    assert_eq!(rows.len(), 8, "{csv}");
+    let direct = |level: &[&str], name: &str| -> serde_json::Value {
+        let d = dir(&format!("tradeoff-direct-{name}"));
+        let mut a = vec![
+            "radiosity",
+            "--patch-size",
+            "400",
+            "--resolution",
+            "16",
+            "--until-error",
+            "0.2",
+            "--out",
+            d.to_str().unwrap(),
+        ];
+        a.extend(level);
+        let o = pxpl5(&a);
+        assert!(o.status.success(), "{name}: {}", text(&o.stderr));
+        let json = std::fs::read_to_string(d.join("comparison.json")).unwrap();
+        serde_json::from_str(&json).unwrap()
+    };
+    let reference = direct(&[], "reference");
+    let levels: [(&str, &[&str]); 4] = [
+        ("integer (reference)", &[]),
+        ("timing", &["--fidelity", "timing"]),
+        ("message ring", &["--ring-level", "message"]),
+        (
+            "timing + message ring",
+            &["--fidelity", "timing", "--ring-level", "message"],
+        ),
+    ];
+    for (knob, level) in levels {
+        let run = direct(level, &knob.replace([' ', '(', ')', '+'], ""));
+        for (m, method) in ["hemisphere", "hemicube"].into_iter().enumerate() {
+            let row = rows
+                .iter()
+                .find(|r| r[0] == knob && r[1] == method)
+                .unwrap_or_else(|| panic!("{knob} {method}: {csv}"));
+            let acc = |v: &serde_json::Value, what: &str| {
+                v["methods"][m]["accuracy"][what].as_f64().unwrap()
+            };
+            let (t, t_ref) = (
+                acc(&run, "time_to_target_s"),
+                acc(&reference, "time_to_target_s"),
+            );
+            let reported: f64 = row[4].parse().unwrap();
+            let expected = (t - t_ref).abs() / t_ref;
+            assert!(
+                (reported - expected).abs() <= 1e-12 * expected.max(1.0),
+                "{knob} {method}: time error {reported}, directly {expected}"
+            );
+            let radiosity: f64 = row[8].parse().unwrap();
+            assert_eq!(radiosity, acc(&run, "final_error"), "{knob} {method}");
+            if knob.starts_with("timing") {
+                // Its form factors are the exact formula's.
+                assert_eq!(row[9], "0", "{knob} {method}: {csv}");
+            }
+        }
+    }
+    let svg = std::fs::read_to_string(out.join("tradeoff.svg")).unwrap();
+    assert!(svg.contains("Pareto frontier"), "{svg}");
+    // A knob filter that names nothing is a user error.
+    let o = pxpl5(&["tradeoff", "--only", "nothing-like-this"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        text(&o.stderr).contains("names no knob"),
+        "{}",
+        text(&o.stderr)
+    );
+}
