@@ -84,6 +84,7 @@ impl Command {
             Command::Bench(BenchCommand::Machine(_)) => "bench machine",
             Command::Stats(StatsCommand::Diff(_)) => "stats diff",
             Command::Trace(TraceCommand::Timeline(_)) => "trace timeline",
+            Command::Trace(TraceCommand::Utilisation(_)) => "trace utilisation",
             Command::Plot(_) => "plot",
             Command::Sensitivity(_) => "sensitivity",
             Command::Stability(_) => "stability",
@@ -150,6 +151,9 @@ enum TraceCommand {
     /// Draw a trace's timeline as an SVG: one row per unit or ring lane, the critical-path track
     /// on top, slices coloured by category (what a Perfetto screenshot would show).
     Timeline(trace_cmd::TimelineArgs),
+    /// Draw each resource's utilisation over simulated time as an SVG: per interval, the busy
+    /// share of the GPs, of the Renderers and of the ring's channels.
+    Utilisation(trace_cmd::UtilisationArgs),
 }
 
 #[derive(Subcommand)]
@@ -273,6 +277,7 @@ fn run_command(command: Option<Command>) -> Result<(), Failure> {
         Some(Command::Formfactor(args)) => radiosity::formfactor(&args),
         Some(Command::Stats(StatsCommand::Diff(args))) => stats_cmd::diff(&args),
         Some(Command::Trace(TraceCommand::Timeline(args))) => trace_cmd::timeline(&args),
+        Some(Command::Trace(TraceCommand::Utilisation(args))) => trace_cmd::utilisation(&args),
         Some(Command::Sweep(cmd)) => sweep::sweep(&cmd),
         Some(Command::Plot(args)) => Ok(plot::plot(&args)?),
         Some(Command::Sensitivity(args)) => sensitivity::sensitivity(&args),

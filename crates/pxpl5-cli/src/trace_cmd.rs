@@ -1,4 +1,13 @@
-//! `pxpl5 trace timeline FILE`: the timeline of a trace file (`--trace`'s Chrome JSON or
+//! `pxpl5 trace timeline FILE` and `pxpl5 trace utilisation FILE`.
+//!
+//! **utilisation**: per resource, its busy share in each of `--bins` equal intervals of simulated
+//! time, as lines in an SVG: the GPs' and the Renderers' work slices (per unit, their union; a
+//! unit with no slice in the trace is not counted), and the ring channels' `token held`
+//! counters. The counter is sampled at the instants the machine steps, so a hold that begins and
+//! ends between two is missed: over the main job's first shots it gives the channels 15.5 % busy
+//! where the stats' exact busy clocks give 16.1 %; the GPs' and Renderers' shares are exact.
+//!
+//! **timeline**: the timeline of a trace file (`--trace`'s Chrome JSON or
 //! Perfetto `.pftrace`) drawn as an SVG with plotters: one row per unit or ring lane that has
 //! slices in the window, the critical-path track on top, slices coloured by category, a time
 //! axis and a legend of the critical path's categories. The picture a Perfetto UI screenshot
@@ -298,6 +307,113 @@ fn perfetto_rows(bytes: &[u8]) -> Result<Vec<Row>, String> {
     Ok(rows)
 }
 
+/// The counter the recorder keeps per ring channel: 1 while a sender holds the channel's token
+/// (transmitting, or under late release waiting for its last word), 0 when it is free.
+const TOKEN_HELD: &str = "token held";
+
+/// Per group (process) of a trace, the intervals in which its counter `name` was not zero, as
+/// the slices of a row named `name`; an interval still open at the trace's end runs to
+/// `u64::MAX` (a caller clamps it to its window).
+pub fn counter_rows(path: &Path, bytes: &[u8], name: &str) -> Result<Vec<Row>, UserError> {
+    let perfetto = crate::run::is_perfetto(path);
+    let samples = if perfetto {
+        perfetto_counter(bytes, name)
+    } else {
+        json_counter(bytes, name)
+    };
+    let samples = samples.map_err(|e| UserError(format!("{}: {e}", path.display())))?;
+    Ok(samples
+        .into_iter()
+        .map(|(group, mut points)| {
+            points.sort_by_key(|p| (p.0, p.1));
+            let mut slices = Vec::new();
+            let mut from: Option<u64> = None;
+            for (ts, _, value) in points {
+                match (from, value != 0) {
+                    (None, true) => from = Some(ts),
+                    (Some(s), false) => {
+                        slices.push((s, ts, String::new()));
+                        from = None;
+                    }
+                    _ => {}
+                }
+            }
+            if let Some(s) = from {
+                slices.push((s, u64::MAX, String::new()));
+            }
+            Row {
+                group,
+                name: name.to_owned(),
+                slices,
+            }
+        })
+        .collect())
+}
+
+/// Per process name, the samples `(ps, file order, value)` of a Chrome trace's counter `name`.
+type Samples = BTreeMap<String, Vec<(u64, usize, i64)>>;
+
+fn json_counter(bytes: &[u8], name: &str) -> Result<Samples, String> {
+    let doc: Value = serde_json::from_slice(bytes).map_err(|e| e.to_string())?;
+    let events = doc
+        .get("traceEvents")
+        .and_then(Value::as_array)
+        .ok_or("not a Chrome trace (JSON): no traceEvents array")?;
+    let processes: BTreeMap<u64, String> = events
+        .iter()
+        .filter(|e| e["ph"] == "M" && e["name"] == "process_name")
+        .filter_map(|e| Some((e["pid"].as_u64()?, e["args"]["name"].as_str()?.to_owned())))
+        .collect();
+    let mut out = Samples::new();
+    for (i, e) in events.iter().enumerate() {
+        if e["ph"] != "C" || e["name"] != name {
+            continue;
+        }
+        let (Some(group), Some(ts), Some(value)) = (
+            e["pid"].as_u64().and_then(|p| processes.get(&p)),
+            json_ps(&e["ts"]),
+            e["args"]["value"].as_i64(),
+        ) else {
+            return Err(format!("a counter `{name}` without pid, ts or value"));
+        };
+        out.entry(group.clone()).or_default().push((ts, i, value));
+    }
+    Ok(out)
+}
+
+fn perfetto_counter(bytes: &[u8], name: &str) -> Result<Samples, String> {
+    let packets = read_packets(bytes).map_err(|e| format!("not a Perfetto trace: {e}"))?;
+    let mut groups: BTreeMap<u64, String> = BTreeMap::new();
+    let mut tracks: BTreeMap<u64, String> = BTreeMap::new();
+    let mut out = Samples::new();
+    for (i, p) in packets.iter().enumerate() {
+        if let Some(d) = &p.track_descriptor {
+            let uuid = d.uuid.unwrap_or(0);
+            match d.parent_uuid {
+                None => {
+                    groups.insert(uuid, d.name.clone().unwrap_or_default());
+                }
+                Some(parent) if d.counter.is_some() && d.name.as_deref() == Some(name) => {
+                    tracks.insert(uuid, groups.get(&parent).cloned().unwrap_or_default());
+                }
+                Some(_) => {}
+            }
+        }
+        let Some(e) = &p.track_event else {
+            continue;
+        };
+        let Some(group) = e.track_uuid.and_then(|u| tracks.get(&u)) else {
+            continue;
+        };
+        if e.r#type.and_then(|t| EventType::try_from(t).ok()) == Some(EventType::Counter) {
+            let ts = p.timestamp.unwrap_or(0).saturating_mul(1_000);
+            let value = e.counter_value.unwrap_or(0);
+            out.entry(group.clone()).or_default().push((ts, i, value));
+        }
+    }
+    Ok(out)
+}
+
 /// Pixels: the label column, a row, the axis band, the legend's lines.
 const LABEL_W: i32 = 230;
 const ROW_H: i32 = 16;
@@ -356,6 +472,7 @@ pub fn draw(rows: &[Row], window: TraceWindow, width: u32) -> Result<String, Str
     let last = rows
         .iter()
         .flat_map(|r| r.slices.iter().map(|s| s.1))
+        .filter(|&e| e != u64::MAX)
         .max()
         .unwrap_or(0);
     let start = window.start.as_ps();
@@ -496,4 +613,216 @@ pub fn draw(rows: &[Row], window: TraceWindow, width: u32) -> Result<String, Str
         root.present().map_err(e)?;
     }
     Ok(svg)
+}
+
+/// Options of `pxpl5 trace utilisation`.
+#[derive(Args, Clone, Debug)]
+pub struct UtilisationArgs {
+    /// The trace: Chrome JSON (`--trace FILE.json`) or Perfetto's format (`--trace FILE.pftrace`).
+    pub file: PathBuf,
+    /// Where the SVG goes; default: FILE with `-utilisation.svg` for its extension.
+    #[arg(long, value_name = "FILE.svg")]
+    pub out: Option<PathBuf>,
+    /// Only this window of simulated time, e.g. 0..2ms (as --trace-window).
+    #[arg(long, value_name = "START..END")]
+    pub window: Option<String>,
+    /// Intervals of simulated time the window is cut into; each point is one's busy share.
+    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub bins: u32,
+}
+
+/// A resource's tracks in a trace: the GPs' work tracks (not their phases), the Renderers, and
+/// per ring channel its token-held counter as slices ([`counter_rows`]): the channel is busy
+/// while a sender holds its token. Its message lanes are not used: a lane's slice runs from the
+/// send to the last word's arrival, waits in the sender's queue included.
+fn resource_of(row: &Row) -> Option<(&'static str, String)> {
+    match row.group.as_str() {
+        "GPs" if row.name.ends_with(" phases") => None,
+        "GPs" => Some(("GPs", row.name.clone())),
+        "Renderers" => Some(("Renderers", row.name.clone())),
+        g if g.starts_with("Ring channel") && row.name == TOKEN_HELD => {
+            Some(("ring channels", g.to_owned()))
+        }
+        _ => None,
+    }
+}
+
+/// Busy intervals of a unit: the union of its slices, sorted.
+fn union(mut slices: Vec<(u64, u64)>) -> Vec<(u64, u64)> {
+    slices.sort_unstable();
+    let mut out: Vec<(u64, u64)> = Vec::new();
+    for (s, e) in slices {
+        match out.last_mut() {
+            Some(last) if s <= last.1 => last.1 = last.1.max(e),
+            _ => out.push((s, e)),
+        }
+    }
+    out
+}
+
+/// Per resource (GPs, Renderers, ring channels) and per bin of `[start, end)`, the share of its
+/// units' time they were busy: the overlap of each unit's busy intervals with the bin, summed
+/// over units, over units x bin width. A unit with no slice in the trace is not counted.
+pub fn utilisation_series(
+    rows: &[Row],
+    (start, end): (u64, u64),
+    bins: u32,
+) -> Vec<(String, Vec<(f64, f64)>)> {
+    let mut units: BTreeMap<(&str, String), Vec<(u64, u64)>> = BTreeMap::new();
+    for row in rows {
+        if let Some(key) = resource_of(row) {
+            units
+                .entry(key)
+                .or_default()
+                .extend(row.slices.iter().map(|&(s, e, _)| (s, e)));
+        }
+    }
+    let span = end.saturating_sub(start).max(1);
+    let bins = u64::from(bins);
+    let edge = |k: u64| start + (u128::from(span) * u128::from(k) / u128::from(bins)) as u64;
+    let mut series = Vec::new();
+    for resource in ["GPs", "Renderers", "ring channels"] {
+        let busy: Vec<Vec<(u64, u64)>> = units
+            .iter()
+            .filter(|((r, _), _)| *r == resource)
+            .map(|(_, s)| union(s.clone()))
+            .collect();
+        if busy.is_empty() {
+            continue;
+        }
+        let mut sums = vec![0u64; bins as usize];
+        for intervals in &busy {
+            for &(s, e) in intervals {
+                let (s, e) = (s.max(start), e.min(end));
+                if s >= e {
+                    continue;
+                }
+                // The bins it overlaps: from the one holding s to the one holding e - 1.
+                let first = (u128::from(s - start) * u128::from(bins) / u128::from(span)) as u64;
+                let last = (u128::from(e - 1 - start) * u128::from(bins) / u128::from(span)) as u64;
+                for k in first..=last.min(bins - 1) {
+                    let (a, b) = (edge(k), edge(k + 1));
+                    sums[k as usize] += e.min(b).saturating_sub(s.max(a));
+                }
+            }
+        }
+        let points = (0..bins)
+            .map(|k| {
+                let (a, b) = (edge(k), edge(k + 1));
+                let width = (b - a).max(1) * busy.len() as u64;
+                let mid_ms = (a + b) as f64 / 2.0 / 1e9;
+                (mid_ms, sums[k as usize] as f64 / width as f64)
+            })
+            .collect();
+        series.push((format!("{resource} ({})", busy.len()), points));
+    }
+    series
+}
+
+/// `pxpl5 trace utilisation`.
+pub fn utilisation(args: &UtilisationArgs) -> Result<(), Failure> {
+    let window = match &args.window {
+        Some(w) => TraceWindow::parse(w).map_err(|e| UserError(format!("--window: {e}")))?,
+        None => TraceWindow::all(),
+    };
+    let out_path = args.out.clone().unwrap_or_else(|| {
+        let stem = args
+            .file
+            .file_stem()
+            .map_or("trace".into(), |s| s.to_string_lossy().into_owned());
+        args.file.with_file_name(format!("{stem}-utilisation.svg"))
+    });
+    let dest = output::dest("--out", &out_path, false)?;
+    let bytes = std::fs::read(&args.file)
+        .map_err(|e| UserError(format!("{}: cannot read: {e}", args.file.display())))?;
+    let mut rows = read_rows(&args.file, &bytes)?;
+    rows.extend(counter_rows(&args.file, &bytes, TOKEN_HELD)?);
+    let last = rows
+        .iter()
+        .flat_map(|r| r.slices.iter().map(|s| s.1))
+        .max()
+        .unwrap_or(0);
+    let start = window.start.0.min(last);
+    let end = window.end.0.min(last);
+    if end <= start {
+        return Err(UserError(format!(
+            "{}: no slice in the window {}..{}",
+            args.file.display(),
+            format_time(Tick(start)),
+            format_time(Tick(end))
+        ))
+        .into());
+    }
+    let series = utilisation_series(&rows, (start, end), args.bins);
+    if series.is_empty() {
+        return Err(UserError(format!(
+            "{}: has no GP, Renderer or ring track to measure",
+            args.file.display()
+        ))
+        .into());
+    }
+    let mut summary = Vec::new();
+    let chart = crate::plot::Chart {
+        title: "busy share per resource over simulated time".into(),
+        x_label: "simulated ms".into(),
+        y_label: "busy share of the resource's units".into(),
+        log_x: false,
+        log_y: false,
+        series: series
+            .into_iter()
+            .map(|(name, points)| {
+                let mean = points.iter().map(|p| p.1).sum::<f64>() / points.len().max(1) as f64;
+                summary.push(format!("{name}: {:.1} % busy", 100.0 * mean));
+                crate::plot::Series {
+                    name,
+                    points,
+                    line: true,
+                }
+            })
+            .collect(),
+        legend: SeriesLabelPosition::UpperRight,
+    };
+    let svg = crate::plot::svg(&[chart], (960, 420))?;
+    output::write_all(&[(dest, svg.into_bytes())], Vec::new())?;
+    outln!(
+        "{} to {}: {}",
+        format_time(Tick(start)),
+        format_time(Tick(end)),
+        summary.join(", ")
+    )?;
+    outln!("wrote {}", out_path.display())?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod utilisation_tests {
+    use super::*;
+
+    fn row(group: &str, name: &str, slices: &[(u64, u64)]) -> Row {
+        Row {
+            group: group.into(),
+            name: name.into(),
+            slices: slices.iter().map(|&(s, e)| (s, e, String::new())).collect(),
+        }
+    }
+
+    #[test]
+    fn busy_shares_per_bin_per_resource() {
+        let rows = [
+            row("GPs", "GP 0", &[(0, 50), (40, 60)]), // overlapping slices count once
+            row("GPs", "GP 0 phases", &[(0, 100)]),   // phases are not work
+            row("GPs", "GP 1", &[(50, 100)]),
+            row("Renderers", "Renderer 0", &[(25, 75)]),
+            row("Ring channel 0", "lane 0", &[(0, 100)]), // a message's wait and flight
+            row("Ring channel 0", TOKEN_HELD, &[(0, 10), (5, 20)]),
+        ];
+        let s = utilisation_series(&rows, (0, 100), 2);
+        let names: Vec<&str> = s.iter().map(|(n, _)| n.as_str()).collect();
+        assert_eq!(names, ["GPs (2)", "Renderers (1)", "ring channels (1)"]);
+        // GPs: bin [0, 50) GP 0 busy 50 of 2 x 50; bin [50, 100) GP 0 10 + GP 1 50.
+        assert_eq!(s[0].1, [(2.5e-8, 0.5), (7.5e-8, 0.6)]);
+        assert_eq!(s[1].1, [(2.5e-8, 0.5), (7.5e-8, 0.5)]);
+        // The channel's token was held 0..20 (the intervals overlap); its lane does not count.
+        assert_eq!(s[2].1, [(2.5e-8, 0.4), (7.5e-8, 0.0)]);
+    }
 }

@@ -2240,3 +2240,74 @@ fn approximate_levels_are_named_and_refused_where_they_cannot_serve() {
         text(&o.stdout)
     );
 }
+
+/// `pxpl5 trace utilisation` of a traced run: the Renderers' mean busy share over the run is the
+/// stats' (each bin's share weighed equally: the bins are of equal width), in both formats; a
+/// window with nothing in it is a user error.
+#[test]
+fn trace_utilisation_agrees_with_the_stats() {
+    let dir = std::env::temp_dir().join(format!("pxpl5-cli-test-util-{}", std::process::id()));
+    let d = dir.to_str().unwrap();
+    for trace in ["t.json", "t.pftrace"] {
+        let file = dir.join(trace);
+        let o = pxpl5(&[
+            "run",
+            "--scene",
+            "programs/polygons/scenes/small.ron",
+            "--trace",
+            file.to_str().unwrap(),
+            "--out",
+            d,
+        ]);
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        let stats: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("stats.json")).unwrap())
+                .unwrap();
+        let busy: Vec<f64> = stats["renderers"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|r| r["busy_percent"].as_f64().unwrap())
+            .collect();
+        let mean = busy.iter().sum::<f64>() / busy.len() as f64;
+        let svg = dir.join("u.svg");
+        let o = pxpl5(&[
+            "trace",
+            "utilisation",
+            file.to_str().unwrap(),
+            "--bins",
+            "64",
+            "--out",
+            svg.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        let report = text(&o.stdout);
+        let at = report.find("Renderers (").expect("a Renderers figure");
+        let figure: f64 = report[at..]
+            .split_once("): ")
+            .and_then(|(_, r)| r.split_once(" %"))
+            .map(|(v, _)| v.parse().unwrap())
+            .unwrap();
+        assert!(
+            (figure - mean).abs() < 0.11,
+            "{trace}: {report} vs stats {mean}"
+        );
+        assert!(
+            report.contains("GPs (") && report.contains("ring channels ("),
+            "{report}"
+        );
+        assert!(
+            std::fs::read_to_string(&svg)
+                .unwrap()
+                .contains("busy share")
+        );
+        let o = pxpl5(&[
+            "trace",
+            "utilisation",
+            file.to_str().unwrap(),
+            "--window",
+            "1s..2s",
+        ]);
+        assert_eq!(o.status.code(), Some(2), "{}", text(&o.stderr));
+    }
+}
