@@ -60,12 +60,14 @@ pub fn text(
         phases,
         frame_writes,
         critical_path,
+        ring_level,
     } = stats;
     let mut out = String::new();
     writeln!(
         out,
-        "{program} on {config} (config hash {config_hash}), fidelity {}",
-        fidelity.name()
+        "{program} on {config} (config hash {config_hash}), fidelity {}, ring level {}",
+        fidelity.name(),
+        ring_level.name()
     )
     .unwrap();
 

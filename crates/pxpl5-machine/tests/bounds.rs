@@ -121,8 +121,7 @@ fn the_largest_costs_at_the_slowest_clocks_stop_at_the_time_limit() {
             let options = RunOptions {
                 fidelity: Fidelity::Integer,
                 max_time,
-                monitor: None,
-                threads: 1,
+                                ..RunOptions::default()
             };
             let err = Machine::new(&cfg, &EveryCost, options, Recorder::new(None, None))
                 .expect("builds")
@@ -254,8 +253,7 @@ proptest::proptest! {
         let options = RunOptions {
             fidelity: Fidelity::Integer,
             max_time: Tick(1_000_000_000_000),
-            monitor: None,
-            threads: 1,
+                        ..RunOptions::default()
         };
         let machine = Machine::new(&cfg, &EveryCost, options, Recorder::new(None, None));
         if let Ok(machine) = machine {

@@ -72,8 +72,8 @@ fn run_with(
     let options = RunOptions {
         fidelity,
         max_time,
-        monitor: None,
         threads: 1,
+        ..RunOptions::default()
     };
     Machine::new(cfg, p, options, recorder)?.run()
 }
