@@ -305,7 +305,10 @@ fn fidelity_word_is_a_hidden_alias_of_integer() {
         // The option's entry: its line and, in the long help, the next.
         let entry = help.split("--fidelity <FIDELITY>").nth(1).unwrap();
         let entry = entry.split("\n      --").next().unwrap();
-        assert!(entry.contains("[possible values: bit, integer]"), "{entry}");
+        assert!(
+            entry.contains("[possible values: bit, integer, timing]"),
+            "{entry}"
+        );
         assert!(!entry.contains("word"), "{entry}");
         let out = pxpl5(&[command, "--fidelity", "words"]);
         assert_eq!(out.status.code(), Some(2));

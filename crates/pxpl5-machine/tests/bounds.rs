@@ -121,7 +121,7 @@ fn the_largest_costs_at_the_slowest_clocks_stop_at_the_time_limit() {
             let options = RunOptions {
                 fidelity: Fidelity::Integer,
                 max_time,
-                                ..RunOptions::default()
+                ..RunOptions::default()
             };
             let err = Machine::new(&cfg, &EveryCost, options, Recorder::new(None, None))
                 .expect("builds")
