@@ -310,9 +310,13 @@ pub(crate) struct Pixels {
     origin: (u32, u32),
     /// Backing store, allocated a block at a time on first save: block -> block_bits planes.
     backing_store: BTreeMap<u32, Vec<u64>>,
-    /// Scratch reused by every command (host work only): the groups it can change, and the
-    /// QEE's streams.
-    active: Vec<u32>,
+    /// Host work only: the groups with an enabled pixel, listed when a command first needs them
+    /// after enable last changed (`enabled_valid`), so the commands between two writes to enable
+    /// share one list; every group, for a command that can change disabled ones; and the QEE's
+    /// streams, reused by every command.
+    enabled: Vec<u32>,
+    enabled_valid: bool,
+    all_groups: Vec<u32>,
     streams: Streams,
 }
 
@@ -344,7 +348,9 @@ impl Board {
             engine,
             origin: (0, 0),
             backing_store: BTreeMap::new(),
-            active: Vec::new(),
+            enabled: Vec::new(),
+            enabled_valid: false,
+            all_groups: (0..geometry.groups as u32).collect(),
             streams: Streams::new(&crate::QeeExpr::default(), (0, 0), 0, 0),
         };
         Board::keeping_time(cfg, Side::Here(Box::new(pixels)))
@@ -690,9 +696,18 @@ impl Pixels {
             | Command::MulConst { .. } => Some(None),
             _ => None,
         };
-        if let Some(w) = writes {
-            let regs = self.engine.get().registers();
-            regs.active_groups(w, &mut self.active);
+        let every_group = matches!(writes, Some(Some(op)) if !op.keeps_zero());
+        if writes.is_some() && !every_group && !self.enabled_valid {
+            self.engine
+                .get()
+                .registers()
+                .enabled_groups(&mut self.enabled);
+            self.enabled_valid = true;
+        }
+        // Enable changes only through a command whose destination it is; the list is made anew
+        // when a later command needs it.
+        if cmd.writes_enable() {
+            self.enabled_valid = false;
         }
         if let Some((expr, _)) = cmd.qee() {
             let g = self.geometry;
@@ -701,7 +716,12 @@ impl Pixels {
                 Engine::Integer(_) => self.streams.set_expr(expr, self.origin),
             }
         }
-        let (active, s) = (&self.active[..], &self.streams);
+        let active = if every_group {
+            &self.all_groups[..]
+        } else {
+            &self.enabled[..]
+        };
+        let s = &self.streams;
         let engine = self.engine.get_mut();
         match *cmd {
             Command::SetOrigin { x, y } => self.origin = (x, y),
@@ -856,7 +876,7 @@ impl Pixels {
     }
 }
 
-/// Which writes to enable a command makes, for [`crate::engine::Registers::active_groups`].
+/// Which writes to enable a command makes: `Some(op)` when it combines into enable by `op`.
 fn enable_write(dst: Bit, combine: crate::LogicOp) -> Option<crate::LogicOp> {
     match dst {
         Bit::Enable => Some(combine),

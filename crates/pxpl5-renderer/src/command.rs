@@ -72,10 +72,15 @@ impl LogicOp {
     /// The function applied to 64 pixels at once.
     #[inline]
     pub fn apply(self, a: u64, b: u64) -> u64 {
-        // Each truth-table bit as an all-ones or all-zeros mask: no branch, so a loop over groups
-        // with a fixed op runs straight through.
-        let t = |k: u8| 0u64.wrapping_sub(u64::from((self.0 >> k) & 1));
-        (t(0) & !a & !b) | (t(1) & !a & b) | (t(2) & a & !b) | (t(3) & a & b)
+        // The truth table in algebraic normal form, f = c0 ^ c1 b ^ c2 a ^ c3 a b over GF(2)
+        // (c0 = t0, c1 = t0 ^ t1, c2 = t0 ^ t2, c3 = t0 ^ t1 ^ t2 ^ t3), each coefficient an
+        // all-ones or all-zeros mask: no branch, and seven operations where the sum of minterms
+        // took thirteen, so a loop over groups with a fixed op runs straight through.
+        let t = |k: u8| u64::from((self.0 >> k) & 1);
+        let m = |bit: u64| 0u64.wrapping_sub(bit);
+        let (t0, t1, t2, t3) = (t(0), t(1), t(2), t(3));
+        let (c0, c1, c2, c3) = (m(t0), m(t0 ^ t1), m(t0 ^ t2), m(t0 ^ t1 ^ t2 ^ t3));
+        c0 ^ (c1 & b) ^ (c2 & a) ^ (c3 & a & b)
     }
 
     /// Whether the result is 0 whenever a is 0: a combine op with this property leaves a pixel
@@ -310,6 +315,26 @@ impl Command {
         }
     }
 
+    /// Whether the command can change the enable register: it is the command's destination bit.
+    pub fn writes_enable(&self) -> bool {
+        matches!(
+            *self,
+            Command::Logic {
+                dst: Bit::Enable,
+                ..
+            } | Command::QeeSign {
+                dst: Bit::Enable,
+                ..
+            } | Command::QeeCompare {
+                dst: Bit::Enable,
+                ..
+            } | Command::Compare {
+                dst: Bit::Enable,
+                ..
+            }
+        )
+    }
+
     /// Enable every pixel.
     pub fn enable_all() -> Command {
         Command::Logic {
@@ -369,6 +394,20 @@ mod tests {
         assert_eq!(LogicOp::ONE.apply(a, b), u64::MAX);
         assert!(LogicOp::AND.keeps_zero() && LogicOp::AND_NOT.keeps_zero());
         assert!(!LogicOp::OR.keeps_zero() && !LogicOp::B.keeps_zero());
+    }
+
+    #[test]
+    fn every_op_is_its_truth_table_at_every_bit() {
+        // All four input pairs in each nibble, at every bit position, for all 16 tables.
+        let (a, b) = (0xCCCC_CCCC_CCCC_CCCCu64, 0xAAAA_AAAA_AAAA_AAAAu64);
+        for table in 0..16u8 {
+            let op = LogicOp(table);
+            let want = (0..64).fold(0u64, |w, i| {
+                let k = (((a >> i) & 1) << 1) | ((b >> i) & 1);
+                w | (u64::from((table >> k) & 1) << i)
+            });
+            assert_eq!(op.apply(a, b), want, "table {table:04b}");
+        }
     }
 
     #[test]

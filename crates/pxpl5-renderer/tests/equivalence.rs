@@ -248,3 +248,49 @@ proptest! {
         run_both(&wide_odd(), &commands)?;
     }
 }
+
+/// A board lists the groups with an enabled pixel once and reuses the list until enable changes.
+/// Against a board that is made to list them anew before every command (by `enable := enable`,
+/// which changes nothing but counts as a write to enable), every state must be the same: a
+/// command that changed enable without the board noticing would leave the first board working
+/// from a stale list.
+fn enabled_list_is_never_stale(
+    fidelity: Fidelity,
+    commands: &[Command],
+) -> Result<(), TestCaseError> {
+    let cfg = small();
+    let refresh = Command::Logic {
+        dst: Bit::Enable,
+        a: Bit::Enable,
+        b: Bit::Enable,
+        op: LogicOp::A,
+    };
+    let (mut reused, mut fresh) = (
+        Board::new(&cfg, 32, fidelity),
+        Board::new(&cfg, 32, fidelity),
+    );
+    for (i, c) in commands.iter().enumerate() {
+        fresh.execute(&refresh).expect("a valid command");
+        prop_assert_eq!(reused.execute(c).is_ok(), fresh.execute(c).is_ok());
+        let (a, b) = (reused.image(), fresh.image());
+        prop_assert!(
+            a == b,
+            "after command {} {:?}: {} vs {}",
+            i,
+            c,
+            a.digest(),
+            b.digest()
+        );
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 128, ..ProptestConfig::default() })]
+
+    #[test]
+    fn the_enabled_groups_list_follows_enable(commands in prop::collection::vec(command(), 1..40)) {
+        enabled_list_is_never_stale(Fidelity::Integer, &commands)?;
+        enabled_list_is_never_stale(Fidelity::Bit, &commands)?;
+    }
+}

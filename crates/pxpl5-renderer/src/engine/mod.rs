@@ -17,7 +17,7 @@
 //! pixel of a group. A group is the host's unit of work, with no counterpart on the board. Both
 //! engines skip the groups a command cannot change (every pixel disabled, for a gated write): a
 //! shortcut with no effect on any result, shared by both levels through
-//! [`Registers::active_groups`].
+//! [`Registers::enabled_groups`].
 
 pub mod bit;
 pub mod integer;
@@ -93,33 +93,51 @@ impl Registers {
 
     /// `dst := op(a, b)`: one ALU step on every pixel.
     pub fn logic(&mut self, dst: Bit, a: Bit, b: Bit, op: LogicOp) {
-        if let Bit::Flag(i) = dst
-            && a != dst
-            && b != dst
-        {
-            // The usual case, a flag from other registers: one pass, the flag's plane taken out
-            // so the others can be read beside it.
-            let mut flag = std::mem::take(&mut self.flags[i as usize]);
-            let (pa, pb) = (self.plane(a), self.plane(b));
-            for (((f, &x), &y), &en) in flag.iter_mut().zip(pa).zip(pb).zip(&self.enable) {
-                *f = gated(*f, en, op.apply(x, y));
-            }
-            self.flags[i as usize] = flag;
-            return;
-        }
-        // Otherwise in chunks through a buffer on the stack, so `dst` may be `a` or `b` and the
-        // inner loops run over plain slices.
+        // The destination's plane is taken out so the inputs can be read beside it; an input that
+        // is the destination itself is read from a copy of the chunk's old values (each group's
+        // result depends only on that group's inputs). Every loop is a plain zip of slices with a
+        // fixed op, which the compiler vectorises.
         const CHUNK: usize = 64;
-        let mut buf = [0u64; CHUNK];
-        let n = self.enable.len();
+        let mut out = std::mem::take(self.plane_mut(dst));
+        let mut old = [0u64; CHUNK];
+        let aliased = a == dst || b == dst;
+        let n = out.len();
         for start in (0..n).step_by(CHUNK) {
             let end = (start + CHUNK).min(n);
-            let values = &mut buf[..end - start];
-            let (pa, pb) = (&self.plane(a)[start..end], &self.plane(b)[start..end]);
-            for ((v, &x), &y) in values.iter_mut().zip(pa).zip(pb) {
-                *v = op.apply(x, y);
+            let old = &mut old[..end - start];
+            if aliased {
+                old.copy_from_slice(&out[start..end]);
             }
-            self.combine_run(dst, start, values, LogicOp::B);
+            let input = |i: Bit| -> &[u64] {
+                if i == dst {
+                    old
+                } else {
+                    &self.plane(i)[start..end]
+                }
+            };
+            let (x, y) = (input(a), input(b));
+            let o = &mut out[start..end];
+            match dst {
+                Bit::Enable => {
+                    for ((o, &x), &y) in o.iter_mut().zip(x).zip(y) {
+                        *o = op.apply(x, y);
+                    }
+                }
+                Bit::Flag(_) => {
+                    let en = &self.enable[start..end];
+                    for (((o, &x), &y), &en) in o.iter_mut().zip(x).zip(y).zip(en) {
+                        *o = gated(*o, en, op.apply(x, y));
+                    }
+                }
+            }
+        }
+        *self.plane_mut(dst) = out;
+    }
+
+    fn plane_mut(&mut self, b: Bit) -> &mut Vec<u64> {
+        match b {
+            Bit::Enable => &mut self.enable,
+            Bit::Flag(i) => &mut self.flags[i as usize],
         }
     }
 
@@ -150,25 +168,33 @@ impl Registers {
         }
     }
 
-    /// The groups a command can change: where some pixel is enabled, when its writes are gated
-    /// (memory and flags) or when it combines into enable with an op that keeps 0 at 0; every group
-    /// otherwise.
-    /// They go into a buffer the caller reuses (a board keeps one, so a command allocates nothing).
-    pub fn active_groups(&self, enable_write: Option<LogicOp>, out: &mut Vec<u32>) {
+    /// The groups with an enabled pixel: those a gated write (memory and flags) can change, and
+    /// those a combine into enable by an op that keeps 0 at 0 can (any other op can change every
+    /// group). They go into a buffer the caller reuses (a board keeps one, so a command allocates
+    /// nothing).
+    pub fn enabled_groups(&self, out: &mut Vec<u32>) {
         out.clear();
-        match enable_write {
-            Some(op) if !op.keeps_zero() => out.extend(0..self.enable.len() as u32),
-            _ => {
-                // Branch-free: write every group, advance past the enabled ones.
-                out.resize(self.enable.len(), 0);
-                let mut k = 0;
-                for (g, &en) in self.enable.iter().enumerate() {
-                    out[k] = g as u32;
+        out.resize(self.enable.len(), 0);
+        let mut k = 0;
+        // Four groups at a time: a view's enable is mostly zero once its first edges are drawn,
+        // and an all-zero run costs one test; elsewhere branch-free, writing every group and
+        // advancing past the enabled ones.
+        let mut chunks = self.enable.chunks_exact(4);
+        let mut g = 0u32;
+        for c in &mut chunks {
+            if (c[0] | c[1] | c[2] | c[3]) != 0 {
+                for (i, &en) in c.iter().enumerate() {
+                    out[k] = g + i as u32;
                     k += usize::from(en != 0);
                 }
-                out.truncate(k);
             }
+            g += 4;
         }
+        for (i, &en) in chunks.remainder().iter().enumerate() {
+            out[k] = g + i as u32;
+            k += usize::from(en != 0);
+        }
+        out.truncate(k);
     }
 }
 
