@@ -29,8 +29,8 @@ use std::collections::{BTreeMap, VecDeque};
 use pxpl5_ring::{Delivery, MessageId, NodeId, Ring, TokenLocation};
 use pxpl5_sim::Tick;
 use pxpl5_trace::{
-    Args, ChromeTrace, EventTrace, FlowStep, JsonValue, PerfettoTrace, SignalId, TraceWindow,
-    TrackId, VcdTrace,
+    Args, ChromeTrace, EventTrace, FlowStep, JsonValue, PerfettoTrace, SignalId, TextValue,
+    TraceWindow, TrackId, VcdTrace,
 };
 
 use crate::critical::PathSegment;
@@ -78,6 +78,19 @@ struct Signals {
     renderer: Vec<SignalId>,
     token_at: Vec<SignalId>,
     token_held: Vec<SignalId>,
+    /// The values of `token_at`: each node's unit, named once (the token moves at every hop).
+    node_text: Vec<TextValue>,
+    /// The value of `token_at` for a channel whose token is nowhere.
+    no_node: TextValue,
+}
+
+/// Names of the event trace's counters, made once (a counter changes at many instants).
+#[derive(Default)]
+struct CounterNames {
+    /// Per node: its output and input queue counters.
+    queues: Vec<(String, String)>,
+    /// Per channel: the process its `token held` counter belongs to.
+    channels: Vec<String>,
 }
 
 /// What the flows need to remember between a message's events; all of it is bounded by the
@@ -112,6 +125,7 @@ pub struct Recorder {
     queue_words: Vec<(u64, u64)>,
     /// Last sampled token state per channel: held, and (VCD) the node it is at.
     token: Vec<(bool, u32)>,
+    counter_names: CounterNames,
     /// Renderer command slices shorter apart than this merge (one Renderer cycle).
     renderer_gap: Tick,
     /// Words of a node's ring output queue.
@@ -171,6 +185,15 @@ impl Recorder {
         self.queue_capacity = queue_capacity;
         self.queue_words = vec![(0, 0); units.len()];
         self.token = vec![(false, u32::MAX); channels as usize];
+        self.counter_names = CounterNames {
+            queues: units
+                .iter()
+                .map(|u| (format!("{u} output words"), format!("{u} input words")))
+                .collect(),
+            channels: (0..channels.min(64))
+                .map(|ch| format!("Ring channel {ch}"))
+                .collect(),
+        };
         self.renderer_gap = renderer_cycle;
         let gps = units.iter().filter(|u| matches!(u, Unit::Gp(_))).count();
         let renderers = units
@@ -241,11 +264,15 @@ impl Recorder {
                 token_at.push(v.text(ring_scope, &format!("ch{ch}_token_at"), "-"));
                 token_held.push(v.wire(ring_scope, &format!("ch{ch}_busy"), 1));
             }
+            let node_text = units.iter().map(|u| v.text_value(&u.to_string())).collect();
+            let no_node = v.text_value("-");
             self.signals = Some(Signals {
                 gp,
                 renderer,
                 token_at,
                 token_held,
+                node_text,
+                no_node,
             });
         }
     }
@@ -413,26 +440,16 @@ impl Recorder {
         }
         if let Some(c) = &mut self.trace {
             let cap = self.queue_capacity;
-            for (i, unit) in self.units.iter().enumerate() {
+            for (i, (out_name, in_name)) in self.counter_names.queues.iter().enumerate() {
                 let node = NodeId(i as u32);
                 let out = cap.saturating_sub(ring.output_free_words(node).unwrap_or(cap));
                 let inp = cap.saturating_sub(ring.input_free_words(node).unwrap_or(cap));
                 let (last_out, last_in) = self.queue_words[i];
                 if out != last_out {
-                    c.counter(
-                        "Ring queues",
-                        &format!("{unit} output words"),
-                        now,
-                        out as i64,
-                    );
+                    c.counter("Ring queues", out_name, now, out as i64);
                 }
                 if inp != last_in {
-                    c.counter(
-                        "Ring queues",
-                        &format!("{unit} input words"),
-                        now,
-                        inp as i64,
-                    );
+                    c.counter("Ring queues", in_name, now, inp as i64);
                 }
                 self.queue_words[i] = (out, inp);
             }
@@ -449,18 +466,19 @@ impl Recorder {
                 && held != was_held
                 && ch < 64
             {
-                let process = format!("Ring channel {ch}");
-                c.counter(&process, "token held", now, i64::from(held));
+                let process = &self.counter_names.channels[ch];
+                c.counter(process, "token held", now, i64::from(held));
             }
             if let (Some(v), Some(s)) = (&mut self.vcd, &self.signals) {
                 if node != was_at {
-                    let name = self
-                        .units
-                        .get(node as usize)
-                        .map_or_else(|| "-".to_owned(), Unit::to_string);
-                    v.change_text(s.token_at[ch], now, &name);
+                    let text = s.node_text.get(node as usize).copied();
+                    v.change_to(s.token_at[ch], now, text.unwrap_or(s.no_node));
                 }
-                v.change(s.token_held[ch], now, u64::from(held));
+                // Only a change: the VCD writes a wire only when its value changes, so a sample
+                // equal to the last one would be dropped there anyway.
+                if held != was_held {
+                    v.change(s.token_held[ch], now, u64::from(held));
+                }
             }
             self.token[ch] = (held, node);
         }

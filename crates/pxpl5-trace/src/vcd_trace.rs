@@ -41,6 +41,10 @@ pub struct ScopeId(usize);
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct SignalId(usize);
 
+/// A text as a value of string variables ([`VcdTrace::text_value`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TextValue(u64);
+
 /// A wire asked for with a width no `u64` value can drive: 0, or above [`MAX_WIDTH`].
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct WidthError {
@@ -189,8 +193,19 @@ impl VcdTrace {
 
     /// Records that string variable `signal` (from [`VcdTrace::text`]) reads `value` from `at`.
     pub fn change_text(&mut self, signal: SignalId, at: Tick, value: &str) {
-        let value = self.text_id(value);
-        self.change(signal, at, value);
+        let value = self.text_value(value);
+        self.change_to(signal, at, value);
+    }
+
+    /// `text` as a value of string variables, for [`VcdTrace::change_to`]: a caller that sets
+    /// the same few texts often names each once, instead of having it looked up at every change.
+    pub fn text_value(&mut self, text: &str) -> TextValue {
+        TextValue(self.text_id(text))
+    }
+
+    /// [`VcdTrace::change_text`] with a text named by [`VcdTrace::text_value`].
+    pub fn change_to(&mut self, signal: SignalId, at: Tick, value: TextValue) {
+        self.change(signal, at, value.0);
     }
 
     /// Adds a `$comment` to the header (after the builder's own), e.g. what a wire's numbers mean.
