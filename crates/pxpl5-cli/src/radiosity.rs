@@ -499,7 +499,7 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
                 |options| picture::render(&cfg, &patches, &run.solution, camera.clone(), options),
                 |r| r.stats.end,
             )?;
-            contents.push(png_with_text(&picture.frame, &stamp)?);
+            contents.push(png_bytes(&picture.frame, Some(&stamp))?);
         }
     }
 
@@ -512,7 +512,7 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
             for b in views {
                 let name = format!("items-{}-shot{shot}-{}.png", run.method.name(), b.view);
                 let dest = output::dest("--out", &args.out.join(name), false)?;
-                writes.push((dest, png_bytes(&picture::item_buffer_picture(b))?));
+                writes.push((dest, png_bytes(&picture::item_buffer_picture(b), None)?));
             }
         }
         let (files, spooled) = traces.files(&mut run.recorder)?;
@@ -548,30 +548,6 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
         )
     };
     Err(Failure::Interrupted(message))
-}
-
-/// A PNG of `frame` with `text` in a tEXt chunk (keyword "Comment") and the simulator's name and
-/// version under "Software", so the picture says what produced it.
-fn png_with_text(
-    frame: &pxpl5_machine::FrameBufferImage,
-    text: &str,
-) -> Result<Vec<u8>, UserError> {
-    let mut out = Vec::new();
-    {
-        let mut enc = png::Encoder::new(&mut out, frame.width, frame.height);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        enc.add_text_chunk(
-            "Software".to_string(),
-            format!("pxpl5 {}", env!("CARGO_PKG_VERSION")),
-        )
-        .map_err(UserError::from)?;
-        enc.add_text_chunk("Comment".to_string(), text.to_string())
-            .map_err(UserError::from)?;
-        let mut w = enc.write_header().map_err(UserError::from)?;
-        w.write_image_data(&frame.rgb).map_err(UserError::from)?;
-    }
-    Ok(out)
 }
 
 /// The options a run resolved to, with the scene, the machine config's name and hash and the

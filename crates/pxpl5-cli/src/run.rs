@@ -149,7 +149,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
     let contents = [
         json.into_bytes(),
         pxpl5_config::show(&cfg).into_bytes(),
-        png_bytes(&result.frame)?,
+        png_bytes(&result.frame, None)?,
     ];
     let mut files: Vec<_> = dests.into_iter().zip(contents).collect();
     let (trace_files, spools) = traces.files(&mut result.recorder)?;
@@ -324,13 +324,28 @@ impl TraceDests {
     }
 }
 
-/// The frame as an 8-bit RGB PNG.
-pub fn png_bytes(frame: &FrameBufferImage) -> Result<Vec<u8>, UserError> {
+/// The frame as an 8-bit RGB PNG; with `comment`, in a tEXt chunk (keyword "Comment") beside
+/// the simulator's name and version under "Software", so the picture says what produced it.
+///
+/// At the png crate's default compression, whose bytes every picture so far has had: its `Fast`
+/// level (fdeflate) would save 1.4 G instructions on `run`'s 1280 x 1024 frame (11.97 G ->
+/// 10.58 G for 10,000 triangles on pxpl5-1989.ron) with the same pixels, but a file 1.6x larger
+/// and different bytes.
+pub fn png_bytes(frame: &FrameBufferImage, comment: Option<&str>) -> Result<Vec<u8>, UserError> {
     let mut out = Vec::new();
     {
         let mut enc = png::Encoder::new(&mut out, frame.width, frame.height);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
+        if let Some(text) = comment {
+            enc.add_text_chunk(
+                "Software".to_string(),
+                format!("pxpl5 {}", env!("CARGO_PKG_VERSION")),
+            )
+            .map_err(UserError::from)?;
+            enc.add_text_chunk("Comment".to_string(), text.to_string())
+                .map_err(UserError::from)?;
+        }
         let mut w = enc.write_header().map_err(UserError::from)?;
         w.write_image_data(&frame.rgb).map_err(UserError::from)?;
     }
