@@ -151,6 +151,7 @@ impl Registers {
     }
 
     /// [`Registers::combine`] for the consecutive groups `start .. start + values.len()`.
+    #[inline]
     pub fn combine_run(&mut self, dst: Bit, start: usize, values: &[u64], combine: LogicOp) {
         let end = start + values.len();
         match dst {
