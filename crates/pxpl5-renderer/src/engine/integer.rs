@@ -295,8 +295,8 @@ fn sign_row(
         last
     } else {
         let rising = diff(0) < 0;
-        hints.k = first_true(0, last - 1, hints.k, |px| (diff(px) >= 0) == rising);
-        hints.k
+        let flips = |px: usize| (diff(px) >= 0) == rising;
+        split(diff(0), v.d, last).unwrap_or_else(|| first_true(0, last - 1, hints.k, flips))
     };
     let mut piece = |lo: usize, hi: usize, hint: &mut usize| {
         let (a, b) = (v.at(lo), v.at(hi));
@@ -323,6 +323,24 @@ fn sign_row(
     if k < last {
         piece(k, last, second);
     }
+}
+
+/// Where a row's difference `diff(px) = diff0 + 2 d px` (d != 0) first changes sign class, for
+/// a row on which it does within `0 ..= last - 1`: the first px with `diff(px) >= 0` when it
+/// rises (d > 0), the first with `diff(px) < 0` when it falls, by one exact division instead of
+/// a search. `None` if `2 d` overflows (the caller then searches).
+#[inline]
+fn split(diff0: i64, d: i64, last: usize) -> Option<usize> {
+    let slope = d.checked_mul(2)?;
+    let px = if slope > 0 {
+        // diff0 + slope px >= 0  <=>  px >= ceil(-diff0 / slope)
+        let n = diff0.checked_neg()?;
+        n.div_euclid(slope) + i64::from(n.rem_euclid(slope) != 0)
+    } else {
+        // diff0 + slope px < 0  <=>  px > diff0 / -slope  <=>  px >= floor(diff0 / -slope) + 1
+        diff0.div_euclid(slope.checked_neg()?) + 1
+    };
+    Some((px.max(0) as usize).min(last - 1))
 }
 
 /// [`sign_row`] for a row along which V is linear, `f(px) = f(0) + b px`: the end of the span by
@@ -520,5 +538,32 @@ impl PixelEngine for IntegerEngine {
             }
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::split;
+
+    /// `split` against its definition, the first px whose difference is in the other sign class,
+    /// for rising and falling rows, flips anywhere in the row, exact multiples and remainders.
+    #[test]
+    fn split_is_the_first_flip() {
+        for last in [1usize, 2, 63, 64, 127] {
+            for d in [-1_000_003i64, -7, -2, -1, 1, 2, 7, 1_000_003] {
+                for diff0 in (-300i64..=300).chain([-2 * d * 127, 2 * d * 127 - 1]) {
+                    let diff = |px: usize| diff0 + 2 * d * px as i64;
+                    let rising = diff(0) < 0;
+                    if (diff(0) >= 0) == (diff(last - 1) >= 0) {
+                        continue;
+                    }
+                    let want = (0..last)
+                        .find(|&px| (diff(px) >= 0) == rising)
+                        .expect("the class changes in the row");
+                    assert_eq!(split(diff0, d, last), Some(want), "d {d}, diff0 {diff0}");
+                }
+            }
+        }
+        assert_eq!(split(0, i64::MAX, 10), None, "2 d overflows");
     }
 }
