@@ -116,9 +116,9 @@ impl IntegerEngine {
 
 /// Sign tests solved per row span: along a row, V is a quadratic in x, so it is monotone on at most
 /// two pieces, and on a monotone piece whose window cannot wrap the pixels with W >= 0 form one
-/// prefix or suffix. Its end is estimated from the real roots of the row's quadratic and then
-/// found exactly by a galloping search on exact integer values (two evaluations when the estimate
-/// is right). A piece whose window might wrap falls back to evaluating every pixel. Exact: the
+/// prefix or suffix. The split between the pieces is one exact division (`split`); a piece's end
+/// is found by a galloping search on exact integer values that starts where the previous row's
+/// ended (two evaluations when it has not moved). A piece whose window might wrap falls back to evaluating every pixel. Exact: the
 /// property tests compare it with the bit level.
 impl IntegerEngine {
     fn sign_test(
@@ -257,16 +257,14 @@ fn first_true(lo: usize, hi: usize, guess: usize, pred: impl Fn(usize) -> bool) 
 /// since a boundary moves little from one row to the next (exactness does not depend on it).
 #[derive(Clone, Copy)]
 struct Hints {
-    /// The split between the two monotone pieces.
-    k: usize,
-    /// The end of the span in each piece.
+    /// The end of the span in each piece (the split between the pieces is found by division,
+    /// `split`).
     first: [usize; 2],
 }
 
 impl Hints {
     fn new(width: usize) -> Hints {
         Hints {
-            k: width / 2,
             first: [width / 2; 2],
         }
     }
@@ -296,7 +294,7 @@ fn sign_row(
     } else {
         let rising = diff(0) < 0;
         let flips = |px: usize| (diff(px) >= 0) == rising;
-        split(diff(0), v.d, last).unwrap_or_else(|| first_true(0, last - 1, hints.k, flips))
+        split(diff(0), v.d, last).unwrap_or_else(|| first_true(0, last - 1, last / 2, flips))
     };
     let mut piece = |lo: usize, hi: usize, hint: &mut usize| {
         let (a, b) = (v.at(lo), v.at(hi));
