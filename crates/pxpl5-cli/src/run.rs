@@ -219,19 +219,28 @@ impl TraceArgs {
         }
     }
 
-    /// The recorder of one run whose traces go to `dests`. A Perfetto trace is streamed during
-    /// the run: its spool (temporary file) is created now and kept in `dests`.
+    /// The recorder of one run whose traces go to `dests`. A Perfetto trace and a VCD are
+    /// streamed during the run: their spools (temporary files) are created now and kept in
+    /// `dests`.
     pub fn recorder(&self, dests: &mut TraceDests) -> Result<Recorder, UserError> {
         let window = self.window()?;
         let vcd = self.vcd.as_ref().map(|_| window);
-        match &dests.trace {
+        let recorder = match &dests.trace {
             Some(dest) if dests.perfetto => {
                 let (spool, file) = output::Spool::create(dest)?;
-                dests.spool = Some(spool);
+                dests.trace_spool = Some(spool);
                 let out = Box::new(std::io::BufWriter::new(file));
-                Ok(Recorder::perfetto(window, out, vcd))
+                Recorder::perfetto(window, out, vcd)
             }
-            trace => Ok(Recorder::new(trace.as_ref().map(|_| window), vcd)),
+            trace => Recorder::new(trace.as_ref().map(|_| window), vcd),
+        };
+        match &dests.vcd {
+            Some(dest) => {
+                let (spool, file) = output::Spool::create(dest)?;
+                dests.vcd_spool = Some(spool);
+                Ok(recorder.stream_vcd(Box::new(std::io::BufWriter::new(file))))
+            }
+            None => Ok(recorder),
         }
     }
 
@@ -259,7 +268,8 @@ impl TraceArgs {
             trace: one("--trace", &self.trace)?,
             vcd: one("--vcd", &self.vcd)?,
             perfetto: self.trace.as_deref().is_some_and(is_perfetto),
-            spool: None,
+            trace_spool: None,
+            vcd_spool: None,
         })
     }
 }
@@ -276,9 +286,11 @@ pub fn is_perfetto(path: &Path) -> bool {
 pub struct TraceDests {
     trace: Option<Dest>,
     vcd: Option<Dest>,
-    /// Whether the trace is Perfetto's format, streamed to `spool`.
+    /// Whether the trace is Perfetto's format, streamed to `trace_spool`.
     perfetto: bool,
-    spool: Option<output::Spool>,
+    trace_spool: Option<output::Spool>,
+    /// The VCD's spool: it is always streamed.
+    vcd_spool: Option<output::Spool>,
 }
 
 impl TraceDests {
@@ -287,8 +299,8 @@ impl TraceDests {
         self.trace.iter().chain(&self.vcd)
     }
 
-    /// A finished run's trace files: where each goes and its bytes, and the streamed trace's
-    /// spool (ended now).
+    /// A finished run's trace files: where each goes and its bytes, and the streamed traces'
+    /// spools (ended now).
     #[allow(clippy::type_complexity)]
     pub fn files(
         &mut self,
@@ -302,26 +314,30 @@ impl TraceDests {
             recorder.write_chrome(&mut bytes).map_err(UserError::from)?;
             files.push((dest.clone(), bytes));
         }
-        if let Some(dest) = &self.vcd {
-            let mut bytes = Vec::new();
-            recorder.write_vcd(&mut bytes).map_err(UserError::from)?;
-            files.push((dest.clone(), bytes));
+        let mut spools = Vec::new();
+        if let Some(spool) = self.trace_spool.take() {
+            recorder
+                .finish_trace()
+                .map_err(|e| cannot_stream(&self.trace, "--trace", e))?;
+            spools.push(spool);
         }
-        let spools: Vec<output::Spool> = self.spool.take().into_iter().collect();
-        if !spools.is_empty() {
-            recorder.finish_trace().map_err(|e| {
-                let shown = self
-                    .trace
-                    .as_ref()
-                    .map_or(String::from("--trace"), |d| match d {
-                        Dest::Stdout => "stdout".to_string(),
-                        Dest::Replace(p) | Dest::Through(p) => p.display().to_string(),
-                    });
-                UserError(format!("{shown}: cannot write: {e}"))
-            })?;
+        if let Some(spool) = self.vcd_spool.take() {
+            recorder
+                .finish_vcd()
+                .map_err(|e| cannot_stream(&self.vcd, "--vcd", e))?;
+            spools.push(spool);
         }
         Ok((files, spools))
     }
+}
+
+/// The error of a streamed trace's write, naming where it goes.
+fn cannot_stream(dest: &Option<Dest>, flag: &str, e: std::io::Error) -> UserError {
+    let shown = dest.as_ref().map_or(flag.to_string(), |d| match d {
+        Dest::Stdout => "stdout".to_string(),
+        Dest::Replace(p) | Dest::Through(p) => p.display().to_string(),
+    });
+    UserError(format!("{shown}: cannot write: {e}"))
 }
 
 /// The frame as an 8-bit RGB PNG; with `comment`, in a tEXt chunk (keyword "Comment") beside

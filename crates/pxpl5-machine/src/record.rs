@@ -166,6 +166,16 @@ impl Recorder {
         )
     }
 
+    /// This recorder with its VCD written to `out` as the run goes (see [`VcdTrace::streamed`]),
+    /// in the window it was asked for; [`Recorder::finish_vcd`] ends it. Without a VCD, the
+    /// recorder is unchanged.
+    pub fn stream_vcd(mut self, out: Box<dyn std::io::Write + Send>) -> Recorder {
+        if let Some(v) = &self.vcd {
+            self.vcd = Some(VcdTrace::streamed(v.window(), out));
+        }
+        self
+    }
+
     fn with_trace(trace: Option<EventTrace>, vcd: Option<TraceWindow>) -> Recorder {
         Recorder {
             trace,
@@ -454,6 +464,11 @@ impl Recorder {
                 self.queue_words[i] = (out, inp);
             }
         }
+        if let Some(v) = &mut self.vcd {
+            // Every change is recorded at the machine's current instant or later (a unit's busy
+            // span, a Renderer command, a ring sample start now), and time never moves back.
+            v.settle(now);
+        }
         for ch in 0..self.token.len() {
             let (node, held) = match ring.token_at(ch as u32) {
                 Some(TokenLocation::Held { by }) => (by.0, true),
@@ -605,11 +620,21 @@ impl Recorder {
         }
     }
 
-    /// Write the VCD, if one was asked for.
+    /// Write the VCD, if one was asked for and held in memory (a streamed one is ended by
+    /// [`Recorder::finish_vcd`]).
     pub fn write_vcd(&self, w: impl std::io::Write) -> std::io::Result<bool> {
         match &self.vcd {
-            Some(v) => v.write(w).map(|_| true),
-            None => Ok(false),
+            Some(v) if !v.is_streamed() => v.write(w).map(|_| true),
+            _ => Ok(false),
+        }
+    }
+
+    /// End the streamed VCD, if there is one: write what it still holds and flush its writer.
+    /// Returns whether there was one, or its first write error.
+    pub fn finish_vcd(&mut self) -> std::io::Result<bool> {
+        match &mut self.vcd {
+            Some(v) if v.is_streamed() => v.finish().map(|()| true),
+            _ => Ok(false),
         }
     }
 }

@@ -20,6 +20,19 @@
 //!   the end are dropped (both as they are recorded, so a long run need not fit in memory).
 //! * Names: a VCD name may hold no whitespace, so characters other than printable ASCII (space
 //!   included) become `_`, and an empty name becomes `_`.
+//!
+//! # Streaming
+//!
+//! [`VcdTrace::new`] holds every change until [`VcdTrace::write`]. [`VcdTrace::streamed`]
+//! writes the same bytes as the run goes, to a writer given at creation, with memory bounded by
+//! the changes recorded between two writes ([`VcdTrace::FLUSH_AT`]) instead of by the run's length. Its
+//! recorder promises, by [`VcdTrace::settle`]`(now)`, that no change before `now` will be
+//! recorded from then on (a simulator records a change when it decides it, at its current
+//! instant or later); a change recorded before a settled instant is a bug of the recorder and
+//! panics, since writing it would put the file out of order. The header is written once time
+//! has settled past the window's start (the initial values need every change up to it), so
+//! every wire and comment must be declared before that. [`VcdTrace::finish`] writes the rest
+//! and returns the first write error.
 
 use std::collections::HashMap;
 use std::fmt;
@@ -80,8 +93,40 @@ struct Signal {
     /// The value at the window start and when it was set (for folding changes recorded out of
     /// order: the latest one wins).
     initial: Option<(Tick, u64)>,
-    /// Changes inside the window, after its start, in recording order.
-    changes: Vec<(Tick, u64)>,
+}
+
+/// A change inside the window, after its start: when, which wire (its index), the value.
+type Change = (Tick, usize, u64);
+
+/// Where a streamed trace writes, and what it has written so far (see "Streaming" in the
+/// module docs).
+struct Stream {
+    out: vcd::Writer<Box<dyn Write + Send>>,
+    /// What the body has written: set once the header and `$dumpvars` are out.
+    body: Option<Body>,
+    /// No change before this instant will be recorded ([`VcdTrace::settle`]).
+    settled: Tick,
+    /// The first write error; nothing is written after it.
+    error: Option<io::Error>,
+    /// Set by [`VcdTrace::finish`]: the text is complete.
+    finished: bool,
+}
+
+impl fmt::Debug for Stream {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Stream")
+            .field("started", &self.body.is_some())
+            .field("settled", &self.settled)
+            .field("error", &self.error)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The state of a VCD body being written: each wire's value as written, and the last timestamp.
+#[derive(Debug)]
+struct Body {
+    current: Vec<u64>,
+    last_time: Tick,
 }
 
 /// A builder of a VCD file over simulated time. See the module docs for the output format.
@@ -97,6 +142,11 @@ pub struct VcdTrace {
     /// The values string variables take, interned: a change stores the index.
     texts: Vec<String>,
     text_ids: HashMap<String, u64>,
+    /// Changes inside the window, after its start, in recording order; when streamed, only
+    /// those not yet written.
+    changes: Vec<Change>,
+    /// Set for a trace written as it is recorded ([`VcdTrace::streamed`]).
+    stream: Option<Stream>,
 }
 
 impl Default for VcdTrace {
@@ -106,6 +156,11 @@ impl Default for VcdTrace {
 }
 
 impl VcdTrace {
+    /// A streamed trace writes what has settled once it holds this many changes: with the
+    /// changes recorded ahead of the settled instant, the bound on its memory beyond the wires
+    /// (24 bytes a change, 1.5 MiB).
+    pub const FLUSH_AT: usize = 1 << 16;
+
     /// An empty trace keeping what falls in `window`.
     pub fn new(window: TraceWindow) -> VcdTrace {
         VcdTrace {
@@ -117,12 +172,40 @@ impl VcdTrace {
             comments: Vec::new(),
             texts: Vec::new(),
             text_ids: HashMap::new(),
+            changes: Vec::new(),
+            stream: None,
+        }
+    }
+
+    /// An empty trace keeping what falls in `window`, written to `out` as it is recorded (see
+    /// "Streaming" in the module docs): its recorder calls [`VcdTrace::settle`] as time goes
+    /// on and [`VcdTrace::finish`] at the end, and never [`VcdTrace::write`].
+    pub fn streamed(window: TraceWindow, out: Box<dyn Write + Send>) -> VcdTrace {
+        VcdTrace {
+            stream: Some(Stream {
+                out: vcd::Writer::new(out),
+                body: None,
+                settled: Tick::ZERO,
+                error: None,
+                finished: false,
+            }),
+            ..VcdTrace::new(window)
         }
     }
 
     /// The window this trace keeps.
     pub fn window(&self) -> TraceWindow {
         self.window
+    }
+
+    /// Whether the trace is written as it is recorded ([`VcdTrace::streamed`]).
+    pub fn is_streamed(&self) -> bool {
+        self.stream.is_some()
+    }
+
+    /// The changes held in memory, not yet written.
+    pub fn held_changes(&self) -> usize {
+        self.changes.len()
     }
 
     /// The scope (VCD module) named `name`, created on first use.
@@ -164,12 +247,12 @@ impl VcdTrace {
                 width,
             });
         }
+        self.assert_header_open(name);
         let id = SignalId(self.signals.len());
         self.signals.push(Signal {
             name: name.to_owned(),
             width,
             initial: None,
-            changes: Vec::new(),
         });
         self.scopes[scope.0].signals.push(id.0);
         Ok(id)
@@ -179,13 +262,13 @@ impl VcdTrace {
     /// text), initially `initial`; set it with [`VcdTrace::change_text`]. Its values are written
     /// as VCD names are: printable ASCII, anything else `_`.
     pub fn text(&mut self, scope: ScopeId, name: &str, initial: &str) -> SignalId {
+        self.assert_header_open(name);
         let id = SignalId(self.signals.len());
         let initial = self.text_id(initial);
         self.signals.push(Signal {
             name: name.to_owned(),
             width: 0,
             initial: Some((Tick::ZERO, initial)),
-            changes: Vec::new(),
         });
         self.scopes[scope.0].signals.push(id.0);
         id
@@ -210,7 +293,17 @@ impl VcdTrace {
 
     /// Adds a `$comment` to the header (after the builder's own), e.g. what a wire's numbers mean.
     pub fn comment(&mut self, text: &str) {
+        self.assert_header_open("a comment");
         self.comments.push(text.to_owned());
+    }
+
+    /// A streamed trace writes its header once time has settled past the window's start; a wire
+    /// or comment declared after that would be missing from it, a bug of the recorder.
+    fn assert_header_open(&self, what: &str) {
+        assert!(
+            self.stream.as_ref().is_none_or(|s| s.body.is_none()),
+            "VCD: {what} declared after the streamed header was written"
+        );
     }
 
     fn text_id(&mut self, text: &str) -> u64 {
@@ -231,6 +324,14 @@ impl VcdTrace {
         if at >= window.end {
             return;
         }
+        if let Some(stream) = &self.stream {
+            // Written already up to `settled`: an earlier change would come out of order.
+            assert!(
+                at >= stream.settled,
+                "VCD change at {at} recorded after time settled at {}",
+                stream.settled
+            );
+        }
         let s = &mut self.signals[signal.0];
         let value = mask(value, s.width);
         if at <= window.start {
@@ -239,8 +340,69 @@ impl VcdTrace {
                 s.initial = Some((at, value));
             }
         } else {
-            s.changes.push((at, value));
+            self.changes.push((at, signal.0, value));
         }
+    }
+
+    /// For a streamed trace: no change before `now` will be recorded from here on, so what lies
+    /// before it may be written (it is, in batches of [`VcdTrace::FLUSH_AT`] changes). `now` never moves
+    /// back. A trace not streamed ignores it.
+    pub fn settle(&mut self, now: Tick) {
+        let Some(stream) = &mut self.stream else {
+            return;
+        };
+        stream.settled = stream.settled.max(now);
+        let settled = stream.settled;
+        if self.changes.len() >= Self::FLUSH_AT {
+            self.flush(settled);
+        }
+    }
+
+    /// Ends a streamed trace: writes every change held and the end's timestamp, and flushes the
+    /// writer. Returns the first write error, if any. A trace not streamed writes nothing.
+    pub fn finish(&mut self) -> io::Result<()> {
+        if self.stream.as_ref().is_none_or(|s| s.finished) {
+            return Ok(());
+        }
+        self.flush(Tick(u64::MAX));
+        let Some(mut stream) = self.stream.take() else {
+            return Ok(());
+        };
+        let ended = match (stream.error.take(), &stream.body) {
+            (Some(e), _) => Err(e),
+            (None, Some(body)) => self.end_body(&mut stream.out, body),
+            (None, None) => Ok(()),
+        };
+        stream.finished = true;
+        stream.settled = Tick(u64::MAX);
+        self.stream = Some(stream);
+        ended
+    }
+
+    /// Writes the header (first time) and the held changes before `before`, keeping the rest.
+    fn flush(&mut self, before: Tick) {
+        let Some(mut stream) = self.stream.take() else {
+            return;
+        };
+        // The header's initial values need every change at or before the window's start.
+        if before > self.window.start || before == Tick(u64::MAX) {
+            if stream.error.is_none() && stream.body.is_none() {
+                match self.begin_body(&mut stream.out) {
+                    Ok(body) => stream.body = Some(body),
+                    Err(e) => stream.error = Some(e),
+                }
+            }
+            sort_changes(&mut self.changes);
+            let n = self.changes.partition_point(|&(at, _, _)| at < before);
+            if stream.error.is_none()
+                && let Some(body) = &mut stream.body
+                && let Err(e) = self.write_changes(&mut stream.out, body, &self.changes[..n])
+            {
+                stream.error = Some(e);
+            }
+            self.changes.drain(..n);
+        }
+        self.stream = Some(stream);
     }
 
     /// Sets when the simulation ended: written (clipped to the window) as a final timestamp so that
@@ -250,8 +412,25 @@ impl VcdTrace {
     }
 
     /// Writes the VCD text to `w` (wrap a file in a `BufWriter`: this writes in small pieces).
+    ///
+    /// # Panics
+    ///
+    /// For a streamed trace ([`VcdTrace::streamed`]), which has written its text already.
     pub fn write<W: Write>(&self, w: W) -> io::Result<()> {
+        assert!(
+            self.stream.is_none(),
+            "a streamed VCD is written as it goes: call finish"
+        );
         let mut out = vcd::Writer::new(w);
+        let mut body = self.begin_body(&mut out)?;
+        let mut changes = self.changes.clone();
+        sort_changes(&mut changes);
+        self.write_changes(&mut out, &mut body, &changes)?;
+        self.end_body(&mut out, &body)
+    }
+
+    /// The header, then `$dumpvars` with the initial values at the window start.
+    fn begin_body<W: Write>(&self, out: &mut vcd::Writer<W>) -> io::Result<Body> {
         // No version number: a release should not change every golden file.
         out.version("pxpl5-trace")?;
         out.comment("timestamps are simulated time in picoseconds, not host time")?;
@@ -277,7 +456,7 @@ impl VcdTrace {
         }
         out.enddefinitions()?;
 
-        let mut current: Vec<u64> = self
+        let current: Vec<u64> = self
             .signals
             .iter()
             .map(|s| s.initial.map_or(0, |(_, v)| v))
@@ -285,41 +464,56 @@ impl VcdTrace {
         out.timestamp(self.window.start.as_ps())?;
         out.begin(SimulationCommand::Dumpvars)?;
         for (index, &value) in current.iter().enumerate() {
-            self.write_value(&mut out, index, value)?;
+            self.write_value(out, index, value)?;
         }
         out.end()?;
+        Ok(Body {
+            current,
+            last_time: self.window.start,
+        })
+    }
 
-        let mut changes: Vec<(Tick, usize, u64)> = self
-            .signals
-            .iter()
-            .enumerate()
-            .flat_map(|(index, s)| s.changes.iter().map(move |&(at, v)| (at, index, v)))
-            .collect();
-        // Stable, so changes to one wire at one instant stay in recording order and the last wins.
-        changes.sort_by_key(|&(at, index, _)| (at, index));
-        let mut last_time = self.window.start;
+    /// Writes `changes`, sorted by [`sort_changes`] and holding every change at each instant
+    /// they cover: per wire and instant the last one, where it changes the wire's value.
+    fn write_changes<W: Write>(
+        &self,
+        out: &mut vcd::Writer<W>,
+        body: &mut Body,
+        changes: &[Change],
+    ) -> io::Result<()> {
         for (i, &(at, index, value)) in changes.iter().enumerate() {
             let superseded = changes
                 .get(i + 1)
                 .is_some_and(|&(next_at, next_index, _)| (next_at, next_index) == (at, index));
-            if superseded || current[index] == value {
+            if superseded || body.current[index] == value {
                 continue;
             }
-            if at != last_time {
+            if at != body.last_time {
                 out.timestamp(at.as_ps())?;
-                last_time = at;
+                body.last_time = at;
             }
-            self.write_value(&mut out, index, value)?;
-            current[index] = value;
+            self.write_value(out, index, value)?;
+            body.current[index] = value;
         }
+        Ok(())
+    }
+
+    /// The end's timestamp (clipped to the window), then a flush of the writer.
+    fn end_body<W: Write>(&self, out: &mut vcd::Writer<W>, body: &Body) -> io::Result<()> {
         if let Some(end) = self.end {
             let end = end.min(self.window.end);
-            if end > last_time {
+            if end > body.last_time {
                 out.timestamp(end.as_ps())?;
             }
         }
         out.flush()
     }
+}
+
+/// Changes in the order they are written: by time, then wire creation order. Stable, so changes
+/// to one wire at one instant stay in recording order and the last wins.
+fn sort_changes(changes: &mut [Change]) {
+    changes.sort_by_key(|&(at, index, _)| (at, index));
 }
 
 /// The whole VCD text (what [`VcdTrace::write`] writes).

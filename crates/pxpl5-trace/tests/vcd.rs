@@ -397,3 +397,116 @@ fn text_variables_carry_names_and_comments_explain_them() {
     let want: Vec<(u64, String)> = want.iter().map(|&(t, v)| (t, v.to_owned())).collect();
     assert_eq!(texts, want);
 }
+
+/// A writer whose bytes the test reads back after the trace is done with it.
+#[derive(Clone, Default)]
+struct Shared(std::sync::Arc<std::sync::Mutex<Vec<u8>>>);
+
+impl std::io::Write for Shared {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.lock().unwrap().extend_from_slice(buf);
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// A streamed trace writes the bytes an in-memory one does, for changes recorded out of order
+/// (ahead of the settled instant, several to one wire at one instant, some repeating the value)
+/// over several flushes, in each kind of window; and it holds no more than a batch and what was
+/// recorded ahead.
+#[test]
+fn a_streamed_trace_writes_the_bytes_of_one_held_in_memory() {
+    let windows = ["1us..2us", "5ps..", "0..300ns"].map(|w| w.parse().unwrap());
+    for window in [TraceWindow::all()].into_iter().chain(windows) {
+        let out = Shared::default();
+        let mut held = VcdTrace::new(window);
+        let mut streamed = VcdTrace::streamed(window, Box::new(out.clone()));
+        let mut wires = Vec::new();
+        for t in [&mut held, &mut streamed] {
+            t.comment("legend");
+            let scope = t.scope("units");
+            let mut w = vec![t.wire(scope, "busy", 1), t.wire(scope, "count", 8)];
+            w.push(t.wire(scope, "wide", 64));
+            w.push(t.text(scope, "at", "-"));
+            wires = w;
+        }
+        let texts: Vec<_> = ["GP 0", "Renderer 1", "-"]
+            .iter()
+            .map(|x| (held.text_value(x), streamed.text_value(x)))
+            .collect();
+        // xorshift64: any fixed sequence will do.
+        let mut state = 0x0005_EED0_F0DD_0BB5_u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let (mut now, mut most) = (0u64, 0usize);
+        for _ in 0..3 * VcdTrace::FLUSH_AT {
+            now += next() % 3;
+            streamed.settle(Tick(now));
+            let r = next();
+            // Half of them at the settled instant itself, the edge a flush must not cross.
+            let at = Tick(now + if r & 1 == 0 { 0 } else { (r >> 8) % 40 });
+            let k = (r % 4) as usize;
+            if k == 3 {
+                let (a, b) = texts[(r >> 20) as usize % texts.len()];
+                held.change_to(wires[k], at, a);
+                streamed.change_to(wires[k], at, b);
+            } else {
+                let value = (r >> 32) % 5;
+                held.change(wires[k], at, value);
+                streamed.change(wires[k], at, value);
+            }
+            most = most.max(streamed.held_changes());
+        }
+        held.set_end(Tick(now + 100));
+        streamed.set_end(Tick(now + 100));
+        streamed.finish().expect("writes to memory");
+        assert!(
+            most <= VcdTrace::FLUSH_AT + 100,
+            "{most} changes held at once in {window}"
+        );
+        let bytes = out.0.lock().unwrap().clone();
+        assert_eq!(
+            String::from_utf8(bytes).unwrap(),
+            held.to_string(),
+            "window {window}"
+        );
+    }
+}
+
+/// A change before the settled instant would be written out of order: a bug of the recorder,
+/// stopped where it happens.
+#[test]
+#[should_panic(expected = "recorded after time settled")]
+fn a_streamed_change_before_the_settled_instant_panics() {
+    let mut t = VcdTrace::streamed(TraceWindow::all(), Box::new(Shared::default()));
+    let scope = t.scope("s");
+    let w = t.wire(scope, "w", 1);
+    t.settle(Tick(100));
+    t.change(w, Tick(99), 1);
+}
+
+/// A streamed trace's write error comes back from `finish`.
+#[test]
+fn a_streamed_write_error_is_returned() {
+    struct Full;
+    impl std::io::Write for Full {
+        fn write(&mut self, _: &[u8]) -> std::io::Result<usize> {
+            Err(std::io::Error::other("disk full"))
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+    let mut t = VcdTrace::streamed(TraceWindow::all(), Box::new(Full));
+    let scope = t.scope("s");
+    let w = t.wire(scope, "w", 1);
+    t.change(w, Tick(5), 1);
+    let err = t.finish().expect_err("nothing can be written");
+    assert!(err.to_string().contains("disk full"), "{err}");
+}
