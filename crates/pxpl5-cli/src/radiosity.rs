@@ -515,9 +515,7 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
                 writes.push((dest, png_bytes(&picture::item_buffer_picture(b), None)?));
             }
         }
-        let (files, spooled) = traces.files(&mut run.recorder)?;
-        writes.extend(files);
-        spools.extend(spooled);
+        spools.extend(traces.files(&mut run.recorder)?);
     }
     output::write_all(&writes, spools)?;
 
