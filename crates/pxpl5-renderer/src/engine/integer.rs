@@ -138,17 +138,19 @@ impl IntegerEngine {
             Bit::Flag(i) => Some(&mut flags[i as usize]),
             Bit::Enable => None,
         };
-        let mut row = usize::MAX;
-        let mut hints = Hints::new(self.geometry.width);
+        let width = self.geometry.width;
+        let mut hints = Hints::new(width);
+        // The groups of the row solved last, `row_start .. row_end`: the active list ascends, so
+        // a row is solved once, at its first active group, and only then divided for.
+        let (mut row_start, mut row_end) = (0, 0);
         for &g in active {
             let g = g as usize;
-            let py = g / gpr;
-            if py != row {
-                row = py;
-                let width = self.geometry.width;
+            if g >= row_end {
+                let py = g / gpr;
+                (row_start, row_end) = (py * gpr, py * gpr + gpr);
                 sign_row(s.row_fn(py), (window, range), width, row_bits, &mut hints);
             }
-            let v = row_bits[g - py * gpr];
+            let v = row_bits[g - row_start];
             match &mut flag {
                 Some(f) => f[g] = gated(f[g], enable[g], combine.apply(f[g], v)),
                 None => enable[g] = combine.apply(enable[g], v),
