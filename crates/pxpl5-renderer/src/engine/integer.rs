@@ -298,30 +298,44 @@ fn sign_row(
         let flips = |px: usize| (diff(px) >= 0) == rising;
         split(diff(0), v.d, last).unwrap_or_else(|| first_true(0, last - 1, last / 2, flips))
     };
-    let mut piece = |lo: usize, hi: usize, hint: &mut usize| {
-        let (a, b) = (v.at(lo), v.at(hi));
-        if !(range.holds(a) && range.holds(b)) {
-            return sign_pixels(v, window, lo, hi, out);
-        }
-        match (a >= 0, b >= 0) {
-            (true, true) => set_span(out, lo, hi),
-            (false, false) => {}
-            // Non-decreasing: from the first px with f >= 0.
-            (false, true) => {
-                *hint = first_true(lo, hi, *hint, |px| v.at(px) >= 0);
-                set_span(out, *hint, hi);
-            }
-            // Non-increasing: up to the last px with f >= 0.
-            (true, false) => {
-                *hint = first_true(lo, hi, *hint, |px| v.at(px) < 0);
-                set_span(out, lo, *hint - 1);
-            }
-        }
-    };
+    // V at the ends of the pieces, each evaluated once (the split's value serves both pieces).
+    let (f0, fl) = (v.at(0), v.at(last));
+    let fk = if k < last { v.at(k) } else { fl };
+    // A monotone piece holds its values between those at its ends, so the row's window cannot
+    // wrap when it holds these three; otherwise every pixel is evaluated.
+    if !(range.holds(f0) && range.holds(fk) && range.holds(fl)) {
+        return sign_pixels(v, window, 0, last, out);
+    }
     let [first, second] = &mut hints.first;
-    piece(0, k, first);
+    piece(v, (0, f0), (k, fk), first, out);
     if k < last {
-        piece(k, last, second);
+        piece(v, (k, fk), (last, fl), second, out);
+    }
+}
+
+/// The W >= 0 pixels of the monotone piece `lo ..= hi` of a row, whose ends have the values
+/// `fa` and `fb` inside the unwrapped range: one prefix or suffix, its end searched from `hint`.
+#[inline]
+fn piece(
+    v: RowFn,
+    (lo, fa): (usize, i64),
+    (hi, fb): (usize, i64),
+    hint: &mut usize,
+    out: &mut [u64],
+) {
+    match (fa >= 0, fb >= 0) {
+        (true, true) => set_span(out, lo, hi),
+        (false, false) => {}
+        // Non-decreasing: from the first px with f >= 0.
+        (false, true) => {
+            *hint = first_true(lo, hi, *hint, |px| v.at(px) >= 0);
+            set_span(out, *hint, hi);
+        }
+        // Non-increasing: up to the last px with f >= 0.
+        (true, false) => {
+            *hint = first_true(lo, hi, *hint, |px| v.at(px) < 0);
+            set_span(out, lo, *hint - 1);
+        }
     }
 }
 
