@@ -65,6 +65,85 @@ pub(crate) struct Packet {
     pub eligible: u64,
 }
 
+/// The nodes' output queues of packets not yet started, FIFO, and which nodes have any: the
+/// decisions look only at those (most nodes wait for nothing at a given clock, and scanning all
+/// of them was most of [`next_decision`]'s work).
+#[derive(Clone, Debug)]
+pub(crate) struct Queues {
+    queues: Vec<VecDeque<Packet>>,
+    /// Bit q % 64 of word q / 64 is set when node q's queue is not empty.
+    waiting: Vec<u64>,
+}
+
+impl Queues {
+    /// Empty queues for `nodes` nodes.
+    pub fn new(nodes: usize) -> Queues {
+        Queues {
+            queues: vec![VecDeque::new(); nodes],
+            waiting: vec![0; nodes.div_ceil(64)],
+        }
+    }
+
+    /// Appends `pkt` to node `q`'s queue.
+    pub fn push(&mut self, q: usize, pkt: Packet) {
+        self.queues[q].push_back(pkt);
+        self.waiting[q / 64] |= 1 << (q % 64);
+    }
+
+    /// Takes the head of node `q`'s queue.
+    pub fn pop(&mut self, q: usize) -> Option<Packet> {
+        let pkt = self.queues[q].pop_front();
+        if self.queues[q].is_empty() {
+            self.waiting[q / 64] &= !(1 << (q % 64));
+        }
+        pkt
+    }
+
+    /// Packet `i` of node `q`'s queue (0: its head).
+    #[inline]
+    pub fn get(&self, q: usize, i: usize) -> Option<&Packet> {
+        self.queues[q].get(i)
+    }
+
+    /// Whether no node has a packet waiting.
+    pub fn is_empty(&self) -> bool {
+        self.waiting.iter().all(|&w| w == 0)
+    }
+
+    /// The nodes whose queue is not empty, in increasing order.
+    #[inline]
+    pub fn waiting(&self) -> Waiting<'_> {
+        Waiting {
+            words: &self.waiting,
+            word: 0,
+            bits: self.waiting.first().copied().unwrap_or(0),
+        }
+    }
+}
+
+/// The iterator of [`Queues::waiting`]: the set bits of the words, lowest first.
+pub(crate) struct Waiting<'a> {
+    words: &'a [u64],
+    /// Index of the word `bits` came from, and its bits not yet returned.
+    word: usize,
+    bits: u64,
+}
+
+impl Iterator for Waiting<'_> {
+    type Item = u32;
+
+    #[inline]
+    fn next(&mut self) -> Option<u32> {
+        while self.bits == 0 {
+            self.word += 1;
+            self.bits = *self.words.get(self.word)?;
+        }
+        let bit = self.bits.trailing_zeros();
+        self.bits &= self.bits - 1;
+        Some((self.word * 64) as u32 + bit)
+    }
+}
+
 /// Where a channel's token goes next: it reaches node `pos` at clock `at` and is free there.
 /// Between visits it is travelling (or held by the sender that captured it, see
 /// [`crate::Ring::token_at`]); a token that is not captured at `pos` reaches `pos + 1` at
@@ -107,13 +186,8 @@ pub(crate) struct Capture {
 /// The packet node `q` would start now, ignoring only its eligibility time: the first packet of
 /// the output queue not yet started (FIFO, head-of-line blocking), provided the destination has
 /// room for its whole message when it is the message's first packet.
-fn startable<'a>(
-    p: &Params,
-    out: &'a [VecDeque<Packet>],
-    flow: &Flow,
-    q: u32,
-) -> Option<&'a Packet> {
-    let pkt = out[q as usize].get(flow.offsets[q as usize])?;
+fn startable<'a>(p: &Params, out: &'a Queues, flow: &Flow, q: u32) -> Option<&'a Packet> {
+    let pkt = out.get(q as usize, flow.offsets[q as usize])?;
     let free = u64::from(p.queue_words).saturating_sub(flow.in_used[pkt.dst as usize]);
     (u64::from(pkt.reserve) <= free).then_some(pkt)
 }
@@ -133,7 +207,7 @@ fn normalise(p: &Params, tok: &mut Token, t: u64) {
 /// packets started to `caps` and sets `flow.next_clock` to `t + 1`.
 pub(crate) fn decide_at(
     p: &Params,
-    out: &[VecDeque<Packet>],
+    out: &Queues,
     flow: &mut Flow,
     t: u64,
     caps: &mut Vec<Capture>,
@@ -204,7 +278,7 @@ fn capture(p: &Params, flow: &mut Flow, c: u32, pkt: Packet, t: u64) -> Capture 
 /// last sender.
 fn decide_message_level(
     p: &Params,
-    out: &[VecDeque<Packet>],
+    out: &Queues,
     flow: &mut Flow,
     t: u64,
     caps: &mut Vec<Capture>,
@@ -213,7 +287,8 @@ fn decide_message_level(
         if flow.tokens[c as usize].at > t {
             continue;
         }
-        let first = (0..p.nodes)
+        let first = out
+            .waiting()
             .filter_map(|q| startable(p, out, flow, q))
             .filter(|pkt| pkt.eligible <= t)
             .min_by_key(|pkt| (pkt.eligible, pkt.msg))
@@ -233,8 +308,9 @@ fn decide_message_level(
 
 /// The message-level model's [`next_decision`]: the first clock at which a channel is free and a
 /// startable packet eligible.
-fn next_message_level_decision(p: &Params, out: &[VecDeque<Packet>], flow: &Flow) -> Option<u64> {
-    let eligible = (0..p.nodes)
+fn next_message_level_decision(p: &Params, out: &Queues, flow: &Flow) -> Option<u64> {
+    let eligible = out
+        .waiting()
         .filter_map(|q| startable(p, out, flow, q))
         .map(|pkt| pkt.eligible)
         .min()?;
@@ -249,13 +325,13 @@ fn next_message_level_decision(p: &Params, out: &[VecDeque<Packet>], flow: &Flow
 /// change only at captures, sends and consumes), so each free token's visits to node `q` are the
 /// arithmetic sequence `at + j*hop + m*lap` and the first one at or after the packet's eligibility
 /// is found by one division. This is what lets the ring skip idle stretches.
-pub(crate) fn next_decision(p: &Params, out: &[VecDeque<Packet>], flow: &Flow) -> Option<u64> {
+pub(crate) fn next_decision(p: &Params, out: &Queues, flow: &Flow) -> Option<u64> {
     if p.level == RingLevel::Message {
         return next_message_level_decision(p, out, flow);
     }
     let lap = p.lap();
     let mut best: Option<u64> = None;
-    for q in 0..p.nodes {
+    for q in out.waiting() {
         let Some(pkt) = startable(p, out, flow, q) else {
             continue;
         };
@@ -312,6 +388,27 @@ mod tests {
         }
     }
 
+    /// The waiting set follows pushes and pops, across words, lowest node first.
+    #[test]
+    fn queues_list_the_nodes_with_packets() {
+        let mut q = Queues::new(130);
+        assert!(q.is_empty() && q.waiting().next().is_none());
+        for node in [129, 3, 64, 3] {
+            q.push(node, packet(node as u32, 0, 1, 0));
+        }
+        assert_eq!(q.waiting().collect::<Vec<_>>(), [3, 64, 129]);
+        assert!(q.pop(3).is_some());
+        assert_eq!(
+            q.waiting().collect::<Vec<_>>(),
+            [3, 64, 129],
+            "one left at 3"
+        );
+        assert!(q.pop(3).is_some() && q.pop(129).is_some());
+        assert_eq!(q.waiting().collect::<Vec<_>>(), [64]);
+        assert!(q.pop(64).is_some() && q.pop(64).is_none());
+        assert!(q.is_empty() && q.waiting().next().is_none());
+    }
+
     #[test]
     fn hops_wrap_in_the_direction_of_flow() {
         let p = params(5, 1, 1);
@@ -344,21 +441,21 @@ mod tests {
     fn next_decision_waits_for_eligibility_by_whole_laps() {
         // 4 nodes, hop 2: the token visits node 3 at 6, 14, 22, ...
         let p = params(4, 1, 2);
-        let mut out = vec![VecDeque::new(); 4];
-        out[3].push_back(packet(3, 1, 4, 15));
+        let mut out = Queues::new(4);
+        out.push(3, packet(3, 1, 4, 15));
         let f = flow(&p, vec![Token { pos: 0, at: 0 }]);
         assert_eq!(next_decision(&p, &out, &f), Some(22));
         // Nothing waiting: nothing to decide.
-        let empty = vec![VecDeque::new(); 4];
+        let empty = Queues::new(4);
         assert_eq!(next_decision(&p, &empty, &f), None);
     }
 
     #[test]
     fn a_full_destination_blocks_the_head_and_the_packets_behind_it() {
         let p = params(4, 1, 1);
-        let mut out = vec![VecDeque::new(); 4];
-        out[0].push_back(packet(0, 2, 10, 0));
-        out[0].push_back(packet(0, 3, 1, 0));
+        let mut out = Queues::new(4);
+        out.push(0, packet(0, 2, 10, 0));
+        out.push(0, packet(0, 3, 1, 0));
         let mut f = flow(&p, vec![Token { pos: 0, at: 0 }]);
         f.in_used[2] = 60; // 4 words free, the head needs 11
         assert_eq!(next_decision(&p, &out, &f), None);
@@ -376,8 +473,8 @@ mod tests {
         ] {
             let mut p = params(6, 1, 2);
             p.policy = policy;
-            let mut out = vec![VecDeque::new(); 6];
-            out[1].push_back(packet(1, 4, 10, 0));
+            let mut out = Queues::new(6);
+            out.push(1, packet(1, 4, 10, 0));
             let mut f = flow(&p, vec![Token { pos: 1, at: 5 }]);
             f.next_clock = 5;
             let mut caps = Vec::new();

@@ -2,12 +2,12 @@
 //! ([`Ring::advance`], or [`Ring::advance_clock_by_clock`], the reference), reports deliveries,
 //! queue space, token positions and statistics. The timing rules are in the crate doc.
 
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::BTreeMap;
 
 use pxpl5_config::RingConfig;
 use pxpl5_sim::{ClockDomain, Cycles, Tick};
 
-use crate::engine::{self, Capture, Flow, Packet, Params, Token};
+use crate::engine::{self, Capture, Flow, Packet, Params, Queues, Token};
 use crate::stats::{ChannelStats, NodeStats, RingStats, TotalStats, ratio};
 use crate::{Delivery, MessageId, NodeId, RingError, RingLevel, TokenLocation};
 
@@ -72,7 +72,7 @@ pub struct Ring {
     clock: ClockDomain,
     now: Tick,
     /// Packets not yet started, per node, in FIFO order.
-    out: Vec<VecDeque<Packet>>,
+    out: Queues,
     /// Output-queue words per node: packets waiting or being transmitted.
     out_used: Vec<u64>,
     /// Per node, how many times its output queue has freed words ([`Ring::output_freed`]).
@@ -168,7 +168,7 @@ impl Ring {
             p,
             clock,
             now: Tick::ZERO,
-            out: vec![VecDeque::new(); n],
+            out: Queues::new(n),
             out_used: vec![0; n],
             freed: vec![0; n],
             flow: Flow {
@@ -293,16 +293,19 @@ impl Ring {
         let packets = words.div_ceil(self.p.max_payload);
         for i in 0..packets {
             let payload = (words - i * self.p.max_payload).min(self.p.max_payload);
-            self.out[s as usize].push_back(Packet {
-                msg: id,
-                src: s,
-                dst: d,
-                payload,
-                words: payload + self.p.header_words,
-                reserve: if i == 0 { total } else { 0 },
-                last: i + 1 == packets,
-                eligible,
-            });
+            self.out.push(
+                s as usize,
+                Packet {
+                    msg: id,
+                    src: s,
+                    dst: d,
+                    payload,
+                    words: payload + self.p.header_words,
+                    reserve: if i == 0 { total } else { 0 },
+                    last: i + 1 == packets,
+                    eligible,
+                },
+            );
         }
         self.out_used[s as usize] += needed;
         let st = &mut self.node[s as usize];
@@ -433,7 +436,7 @@ impl Ring {
     fn apply(&mut self, cap: &Capture) {
         let pkt = cap.packet;
         let q = pkt.src as usize;
-        let popped = self.out[q].pop_front();
+        let popped = self.out.pop(q);
         if popped != Some(pkt) {
             panic!(
                 "pxpl5-ring model bug on channel {}, clock {}: node {q} started {pkt:?} but its \
@@ -594,7 +597,7 @@ impl Ring {
 
     /// Whether nothing is queued or in flight (delivered messages not yet consumed do not count).
     pub fn is_idle(&self) -> bool {
-        self.events.is_empty() && self.out.iter().all(VecDeque::is_empty)
+        self.events.is_empty() && self.out.is_empty()
     }
 
     /// How many times `node`'s output queue has freed words so far. A send refused for want of
