@@ -79,10 +79,20 @@ pub fn pack(values: &[u64], bits: u32, word_bits: u32) -> Vec<u64> {
 /// The inverse of [`pack`] for `count` pixels.
 pub fn unpack(words: &[u64], bits: u32, word_bits: u32, count: usize) -> Vec<u64> {
     if bits <= word_bits {
+        // Word by word, k pixels each, then the last word's part: no division per pixel (a
+        // GP unpacks every ID it reads back, 49,152 per hemicube shot).
         let k = (word_bits / bits) as usize;
-        (0..count)
-            .map(|i| (words[i / k] >> ((i % k) as u32 * bits)) & mask(bits))
-            .collect()
+        let m = mask(bits);
+        let (full, rest) = (count / k, count % k);
+        let mut out = Vec::with_capacity(count);
+        for &w in &words[..full] {
+            out.extend((0..k as u32).map(|j| (w >> (j * bits)) & m));
+        }
+        if rest > 0 {
+            let w = words[full];
+            out.extend((0..rest as u32).map(|j| (w >> (j * bits)) & m));
+        }
+        out
     } else {
         let per = bits.div_ceil(word_bits) as usize;
         (0..count)
