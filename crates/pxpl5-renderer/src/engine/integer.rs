@@ -454,7 +454,33 @@ impl PixelEngine for IntegerEngine {
     }
 
     fn write_const(&mut self, dst: Field, value: u64, active: &[u32]) {
-        self.update(dst, active, |_, _| value)
+        let a = Access::of(dst);
+        if a.straddles() {
+            return self.update(dst, active, |_, _| value);
+        }
+        // A field inside one limb: a group with many enabled pixels in one branch-free pass over
+        // its 64 that the compiler vectorises, a disabled pixel keeping its bits; one with few,
+        // pixel by enabled pixel (a polygon's ID, written at every pixel it covers, took 8 % of a
+        // hemicube run's instructions through `update`). The threshold of 40 was the best of 24
+        // and 40 on `bench machine --instructions`.
+        let (clear, set) = (!(a.mask << a.shift), (value & a.mask) << a.shift);
+        let limb = &mut self.limbs[a.limb];
+        for &g in active {
+            let g = g as usize;
+            let en = self.regs.enable[g];
+            let pixels = &mut limb[g * 64..g * 64 + 64];
+            if en.count_ones() < 40 {
+                for_each_bit(en, |i| {
+                    let w = &mut pixels[i as usize];
+                    *w = (*w & clear) | set;
+                });
+                continue;
+            }
+            for (i, w) in pixels.iter_mut().enumerate() {
+                let on = 0u64.wrapping_sub((en >> i) & 1);
+                *w = (*w & (clear | !on)) | (set & on);
+            }
+        }
     }
 
     fn copy(&mut self, dst: Field, src: Field, active: &[u32]) {
