@@ -1,8 +1,9 @@
-//! Shared helpers of the integration tests: where the workspace is, and what the fuzz targets
-//! share ([`fuzzing`]: case counts, seeds, inputs mutated from the shipped files). The crates'
-//! tests take it as a dev-dependency.
+//! Shared helpers of the integration tests: where the workspace is, a writer to read back
+//! ([`SharedBytes`]), and what the fuzz targets share ([`fuzzing`]: case counts, seeds, inputs
+//! mutated from the shipped files). The crates' tests take it as a dev-dependency.
 
 use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
 
 pub mod fuzzing;
 
@@ -12,4 +13,30 @@ pub fn workspace_root() -> PathBuf {
         .parent()
         .expect("tests/ has a parent")
         .to_path_buf()
+}
+
+/// An in-memory writer whose bytes a test reads back after handing a clone away as a
+/// `Box<dyn Write + Send>` (a streamed trace keeps its writer to the end).
+#[derive(Clone, Debug, Default)]
+pub struct SharedBytes(Arc<Mutex<Vec<u8>>>);
+
+impl SharedBytes {
+    /// The bytes written so far, through every clone.
+    pub fn bytes(&self) -> Vec<u8> {
+        self.0.lock().unwrap_or_else(|e| e.into_inner()).clone()
+    }
+}
+
+impl std::io::Write for SharedBytes {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .extend_from_slice(buf);
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
 }

@@ -28,8 +28,8 @@
 //! the changes recorded between two writes ([`VcdTrace::FLUSH_AT`]) instead of by the run's length. Its
 //! recorder promises, by [`VcdTrace::settle`]`(now)`, that no change before `now` will be
 //! recorded from then on (a simulator records a change when it decides it, at its current
-//! instant or later); a change recorded before a settled instant is a bug of the recorder and
-//! panics, since writing it would put the file out of order. The header is written once time
+//! instant or later); a change recorded before a settled instant is a bug of the recorder, and
+//! [`VcdTrace::finish`] returns it as an error instead of writing the file out of order. The header is written once time
 //! has settled past the window's start (the initial values need every change up to it), so
 //! every wire and comment must be declared before that. [`VcdTrace::finish`] writes the rest
 //! and returns the first write error.
@@ -324,13 +324,21 @@ impl VcdTrace {
         if at >= window.end {
             return;
         }
-        if let Some(stream) = &self.stream {
-            // Written already up to `settled`: an earlier change would come out of order.
-            assert!(
-                at >= stream.settled,
-                "VCD change at {at} recorded after time settled at {}",
-                stream.settled
-            );
+        if let Some(stream) = &mut self.stream
+            && at < stream.settled
+        {
+            // Written already up to `settled`: the change would come out of order. The recorder
+            // broke its promise (a simulator bug); the trace fails rather than lie.
+            if stream.error.is_none() {
+                stream.error = Some(io::Error::new(
+                    io::ErrorKind::InvalidData,
+                    format!(
+                        "VCD change at {at} recorded after time settled at {} (a simulator bug)",
+                        stream.settled
+                    ),
+                ));
+            }
+            return;
         }
         let s = &mut self.signals[signal.0];
         let value = mask(value, s.width);

@@ -2,6 +2,7 @@
 //! values at the right times; output is deterministic; the window folds and drops changes.
 
 use pxpl5_sim::Tick;
+use pxpl5_tests::SharedBytes;
 use pxpl5_trace::{TraceWindow, VcdTrace, WidthError};
 use vcd::{Command, IdCode, ScopeItem, TimescaleUnit, Value};
 
@@ -398,20 +399,6 @@ fn text_variables_carry_names_and_comments_explain_them() {
     assert_eq!(texts, want);
 }
 
-/// A writer whose bytes the test reads back after the trace is done with it.
-#[derive(Clone, Default)]
-struct Shared(std::sync::Arc<std::sync::Mutex<Vec<u8>>>);
-
-impl std::io::Write for Shared {
-    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        self.0.lock().unwrap().extend_from_slice(buf);
-        Ok(buf.len())
-    }
-    fn flush(&mut self) -> std::io::Result<()> {
-        Ok(())
-    }
-}
-
 /// A streamed trace writes the bytes an in-memory one does, for changes recorded out of order
 /// (ahead of the settled instant, several to one wire at one instant, some repeating the value)
 /// over several flushes, in each kind of window; and it holds no more than a batch and what was
@@ -420,7 +407,7 @@ impl std::io::Write for Shared {
 fn a_streamed_trace_writes_the_bytes_of_one_held_in_memory() {
     let windows = ["1us..2us", "5ps..", "0..300ns"].map(|w| w.parse().unwrap());
     for window in [TraceWindow::all()].into_iter().chain(windows) {
-        let out = Shared::default();
+        let out = SharedBytes::default();
         let mut held = VcdTrace::new(window);
         let mut streamed = VcdTrace::streamed(window, Box::new(out.clone()));
         let mut wires = Vec::new();
@@ -470,7 +457,7 @@ fn a_streamed_trace_writes_the_bytes_of_one_held_in_memory() {
             most <= VcdTrace::FLUSH_AT + 100,
             "{most} changes held at once in {window}"
         );
-        let bytes = out.0.lock().unwrap().clone();
+        let bytes = out.bytes();
         assert_eq!(
             String::from_utf8(bytes).unwrap(),
             held.to_string(),
@@ -480,15 +467,20 @@ fn a_streamed_trace_writes_the_bytes_of_one_held_in_memory() {
 }
 
 /// A change before the settled instant would be written out of order: a bug of the recorder,
-/// stopped where it happens.
+/// which `finish` reports instead of writing a file out of order.
 #[test]
-#[should_panic(expected = "recorded after time settled")]
-fn a_streamed_change_before_the_settled_instant_panics() {
-    let mut t = VcdTrace::streamed(TraceWindow::all(), Box::new(Shared::default()));
+fn a_streamed_change_before_the_settled_instant_is_an_error() {
+    let out = SharedBytes::default();
+    let mut t = VcdTrace::streamed(TraceWindow::all(), Box::new(out.clone()));
     let scope = t.scope("s");
     let w = t.wire(scope, "w", 1);
     t.settle(Tick(100));
     t.change(w, Tick(99), 1);
+    let err = t.finish().expect_err("out of order");
+    assert!(
+        err.to_string().contains("recorded after time settled at"),
+        "{err}"
+    );
 }
 
 /// A streamed trace's write error comes back from `finish`.

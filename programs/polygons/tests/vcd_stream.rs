@@ -1,26 +1,11 @@
 //! The VCD the CLI streams to disk during a run (`Recorder::stream_vcd`, bounded memory) has the
-//! bytes of the one held in memory to the end, on a run long enough for several of the stream's
-//! batches, whole and windowed (issue 10: a traced 10,000-triangle run kept 98 MB).
-
-use std::sync::{Arc, Mutex};
+//! bytes of the one held in memory to the end, whole and windowed, on a run long enough that the
+//! stream writes a batch before the run ends (issue 10: a traced 10,000-triangle run kept 98 MB).
 
 use pxpl5_machine::{Machine, Recorder, RunOptions};
 use pxpl5_polygons::{Polygons, scenes};
+use pxpl5_tests::SharedBytes;
 use pxpl5_trace::{TraceWindow, VcdTrace};
-
-/// A writer the test reads back once the run is over.
-#[derive(Clone, Default)]
-struct Shared(Arc<Mutex<Vec<u8>>>);
-
-impl std::io::Write for Shared {
-    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        self.0.lock().unwrap().extend_from_slice(buf);
-        Ok(buf.len())
-    }
-    fn flush(&mut self) -> std::io::Result<()> {
-        Ok(())
-    }
-}
 
 #[test]
 fn a_streamed_vcd_is_the_vcd_held_in_memory() {
@@ -37,7 +22,7 @@ fn a_streamed_vcd_is_the_vcd_held_in_memory() {
         let mut held = run(Recorder::new(None, Some(window)));
         let mut bytes = Vec::new();
         assert!(held.recorder.write_vcd(&mut bytes).unwrap());
-        let out = Shared::default();
+        let out = SharedBytes::default();
         let mut streamed = run(Recorder::new(None, Some(window)).stream_vcd(Box::new(out.clone())));
         assert!(streamed.recorder.finish_vcd().unwrap(), "a streamed VCD");
         assert!(
@@ -45,7 +30,7 @@ fn a_streamed_vcd_is_the_vcd_held_in_memory() {
             "written already"
         );
         assert!(!held.recorder.finish_vcd().unwrap(), "not streamed");
-        let streamed_bytes = out.0.lock().unwrap().clone();
+        let streamed_bytes = out.bytes();
         assert!(
             held.stats.to_json() == streamed.stats.to_json(),
             "a trace changes no result"
