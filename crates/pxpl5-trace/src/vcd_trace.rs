@@ -108,8 +108,13 @@ struct Stream {
     settled: Tick,
     /// The first write error; nothing is written after it.
     error: Option<io::Error>,
-    /// Set by [`VcdTrace::finish`]: the text is complete.
-    finished: bool,
+}
+
+impl Stream {
+    /// Whether [`VcdTrace::finish`] has run: it settles time at its end, `Tick(u64::MAX)`.
+    fn finished(&self) -> bool {
+        self.settled == Tick(u64::MAX)
+    }
 }
 
 impl fmt::Debug for Stream {
@@ -187,7 +192,6 @@ impl VcdTrace {
                 body: None,
                 settled: Tick::ZERO,
                 error: None,
-                finished: false,
             }),
             ..VcdTrace::new(window)
         }
@@ -369,7 +373,7 @@ impl VcdTrace {
     /// Ends a streamed trace: writes every change held and the end's timestamp, and flushes the
     /// writer. Returns the first write error, if any. A trace not streamed writes nothing.
     pub fn finish(&mut self) -> io::Result<()> {
-        if self.stream.as_ref().is_none_or(|s| s.finished) {
+        if self.stream.as_ref().is_none_or(Stream::finished) {
             return Ok(());
         }
         self.flush(Tick(u64::MAX));
@@ -381,7 +385,6 @@ impl VcdTrace {
             (None, Some(body)) => self.end_body(&mut stream.out, body),
             (None, None) => Ok(()),
         };
-        stream.finished = true;
         stream.settled = Tick(u64::MAX);
         self.stream = Some(stream);
         ended
@@ -392,7 +395,8 @@ impl VcdTrace {
         let Some(mut stream) = self.stream.take() else {
             return;
         };
-        // The header's initial values need every change at or before the window's start.
+        // The header's initial values need every change at or before the window's start (the
+        // end of time, at `finish`, writes the header even of a window starting there).
         if before > self.window.start || before == Tick(u64::MAX) {
             if stream.error.is_none() && stream.body.is_none() {
                 match self.begin_body(&mut stream.out) {

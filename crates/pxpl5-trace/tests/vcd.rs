@@ -458,6 +458,8 @@ fn a_streamed_trace_writes_the_bytes_of_one_held_in_memory() {
             "{most} changes held at once in {window}"
         );
         let bytes = out.bytes();
+        streamed.finish().expect("a second finish writes nothing");
+        assert_eq!(out.bytes(), bytes, "a second finish wrote more");
         assert_eq!(
             String::from_utf8(bytes).unwrap(),
             held.to_string(),
