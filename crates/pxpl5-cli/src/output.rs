@@ -337,9 +337,19 @@ pub fn write_all(files: &[(Dest, Vec<u8>)], spools: Vec<Spool>) -> Result<(), Us
 pub struct Spool {
     dest: Dest,
     tmp: PathBuf,
-    created: Vec<PathBuf>,
     /// Set once written: the directories created now hold the file.
     keep_dirs: bool,
+}
+
+/// The directories the spools of this process created, while no file written holds them. A
+/// spool dropped unwritten removes those above its temporary file that are empty then: the
+/// last of several spools in one new directory (a radiosity run's traces, one per method) takes
+/// it away, whichever spool made it.
+static SPOOL_DIRS: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+fn spool_dirs() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    // A panic elsewhere while the list was held leaves it as it was: a list of paths.
+    SPOOL_DIRS.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 impl Spool {
@@ -361,10 +371,10 @@ impl Spool {
             Dest::Through(path) => (spool_path(&NEXT), path.clone()),
             Dest::Stdout => (spool_path(&NEXT), PathBuf::from("stdout")),
         };
+        spool_dirs().extend(created);
         let mut spool = Spool {
             dest: dest.clone(),
             tmp,
-            created,
             keep_dirs: false,
         };
         let opened = fs::OpenOptions::new()
@@ -398,8 +408,18 @@ impl Drop for Spool {
             let _ = fs::remove_file(&self.tmp);
         }
         if !self.keep_dirs {
-            for dir in self.created.iter().rev() {
-                let _ = fs::remove_dir(dir);
+            let mut dirs = spool_dirs();
+            // Deepest first; one that holds anything (another spool's file) stays, for now.
+            let mut mine: Vec<PathBuf> = dirs
+                .iter()
+                .filter(|d| self.tmp.starts_with(d))
+                .cloned()
+                .collect();
+            mine.sort_by_key(|d| std::cmp::Reverse(d.components().count()));
+            for dir in mine {
+                if fs::remove_dir(&dir).is_ok() {
+                    dirs.retain(|d| d != &dir);
+                }
             }
         }
     }

@@ -1229,7 +1229,15 @@ fn a_failed_run_leaves_the_output_directory_as_it_found_it() {
     std::fs::write(present.join("keep.txt"), "mine").unwrap();
     std::fs::write(present.join("comparison.csv"), "old").unwrap();
     let before = listing(&present);
-    for out_d in [&absent, &present] {
+    // Every kind of trace: each run's JSON, Perfetto trace and VCD has a spool from the run's
+    // start, several in one new directory (before, the one that made it went first and the
+    // directory stayed behind, empty).
+    for (out_d, trace) in [
+        (&absent, "t.json"),
+        (&absent, "t.pftrace"),
+        (&present, "t.json"),
+        (&present, "t.pftrace"),
+    ] {
         // Both methods run, with item buffers and traces; the picture's render fails last.
         let out = pxpl5(&[
             "radiosity",
@@ -1248,7 +1256,9 @@ fn a_failed_run_leaves_the_output_directory_as_it_found_it() {
             "--out",
             out_d.to_str().unwrap(),
             "--trace",
-            out_d.join("t.json").to_str().unwrap(),
+            out_d.join(trace).to_str().unwrap(),
+            "--vcd",
+            out_d.join("t.vcd").to_str().unwrap(),
         ]);
         no_panic(&out);
         let err = text(&out.stderr);
