@@ -358,6 +358,12 @@ impl Spool {
         self.keep_dirs = true;
     }
 
+    /// The directory of the temporary file: where a trace may put files of its own that end
+    /// with the run (on the destination's file system, when the destination is a file).
+    pub fn dir(&self) -> PathBuf {
+        parent_dir(&self.tmp)
+    }
+
     /// The spool of `dest` and its temporary file, open for writing. Fails, naming the path, when
     /// the temporary file cannot be created.
     pub fn create(dest: &Dest) -> Result<(Spool, fs::File), UserError> {

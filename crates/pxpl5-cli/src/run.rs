@@ -219,8 +219,8 @@ impl TraceArgs {
     }
 
     /// The recorder of one run whose traces go to `dests`. A Perfetto trace and a VCD are
-    /// streamed during the run: their spools (temporary files) are created now and kept in
-    /// `dests`.
+    /// streamed during the run, and a Chrome trace spills its sorted runs beside its own: their
+    /// spools (temporary files) are created now and kept in `dests`.
     pub fn recorder(&self, dests: &mut TraceDests) -> Result<Recorder, UserError> {
         let window = self.window()?;
         let vcd = self.vcd.as_ref().map(|_| window);
@@ -231,7 +231,16 @@ impl TraceArgs {
                 let out = Box::new(std::io::BufWriter::new(file));
                 Recorder::perfetto(window, out, vcd)
             }
-            trace => Recorder::new(trace.as_ref().map(|_| window), vcd),
+            Some(dest) => {
+                // Created now, so that the JSON's sorted runs have a directory on the same
+                // file system as the file (not the system's temporary directory, which may be
+                // memory), and so that a destination that cannot be written fails before the run.
+                let (spool, file) = output::Spool::create(dest)?;
+                let dir = spool.dir();
+                dests.json_spool = Some((spool, file));
+                Recorder::new(Some(window), vcd).spill_chrome(dir, pxpl5_trace::SPILL_AT)
+            }
+            None => Recorder::new(None, vcd),
         };
         match &dests.vcd {
             Some(dest) => {
@@ -268,6 +277,7 @@ impl TraceArgs {
             vcd: one("--vcd", &self.vcd)?,
             perfetto: self.trace.as_deref().is_some_and(is_perfetto),
             trace_spool: None,
+            json_spool: None,
             vcd_spool: None,
         })
     }
@@ -288,6 +298,8 @@ pub struct TraceDests {
     /// Whether the trace is Perfetto's format, streamed to `trace_spool`.
     perfetto: bool,
     trace_spool: Option<output::Spool>,
+    /// The Chrome trace's spool, open: the JSON is written to it when the run ends.
+    json_spool: Option<(output::Spool, std::fs::File)>,
     /// The VCD's spool: it is always streamed.
     vcd_spool: Option<output::Spool>,
 }
@@ -303,12 +315,9 @@ impl TraceDests {
     pub fn files(&mut self, recorder: &mut Recorder) -> Result<Vec<output::Spool>, UserError> {
         use std::io::Write as _;
         let mut spools = Vec::new();
-        if let Some(dest) = &self.trace
-            && !self.perfetto
-        {
+        if let Some((spool, file)) = self.json_spool.take() {
             // Written to its spool, not gathered in memory first: the text is as large again as
             // the events it comes from (17 MB for a traced 10,000-triangle run).
-            let (spool, file) = output::Spool::create(dest)?;
             let mut out = std::io::BufWriter::new(file);
             recorder
                 .write_chrome(&mut out)

@@ -176,6 +176,26 @@ impl Recorder {
         self
     }
 
+    /// This recorder with its Chrome trace's memory bounded: past `budget` bytes of events
+    /// ([`pxpl5_trace::SPILL_AT`] is the CLI's), sorted runs go to anonymous files in `dir`
+    /// (see [`ChromeTrace::spill_at`]); the output is the same. Without a Chrome trace, the
+    /// recorder is unchanged.
+    pub fn spill_chrome(mut self, dir: std::path::PathBuf, budget: usize) -> Recorder {
+        self.trace = match self.trace.take() {
+            Some(EventTrace::Chrome(c)) => Some(EventTrace::Chrome(c.spill_at(dir, budget))),
+            other => other,
+        };
+        self
+    }
+
+    /// How many sorted runs the Chrome trace wrote to disk so far (0 without one).
+    pub fn chrome_spilled_runs(&self) -> usize {
+        match &self.trace {
+            Some(EventTrace::Chrome(c)) => c.spilled_runs(),
+            _ => 0,
+        }
+    }
+
     fn with_trace(trace: Option<EventTrace>, vcd: Option<TraceWindow>) -> Recorder {
         Recorder {
             trace,

@@ -36,17 +36,25 @@
 //!   long run's trace need not fit in memory); slices crossing an edge are clipped to it and get
 //!   the arg `"clipped": true`. A counter's last value before the window is carried to the window
 //!   start, since a counter holds its value until its next sample.
+//! * **Memory.** An event is rendered to its line of JSON as it is recorded and kept with its
+//!   place in the order. By default everything is held until [`ChromeTrace::write`]; a trace
+//!   made with [`ChromeTrace::spill_to`] (the CLI's) holds at most [`SPILL_AT`] bytes of lines
+//!   and as many of grouped runs, writing each batch beyond that, sorted, to an anonymous
+//!   temporary file, and `write` merges the files (`spill.rs`). The bytes are the same either
+//!   way; a long run's trace then costs disk, not memory.
 //! * One event per line, so traces diff and grep well.
 
-use std::borrow::Cow;
 use std::cmp::Reverse;
+use std::collections::btree_map::Entry;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::fmt;
 use std::io::{self, Write};
+use std::path::PathBuf;
 
 use pxpl5_sim::Tick;
 
 use crate::json::{JsonValue, write_object, write_string};
+use crate::spill::{ExternalSort, SortKey, merge};
 use crate::window::TraceWindow;
 
 /// Arguments attached to an event (shown in the viewer's details panel).
@@ -120,16 +128,6 @@ impl FlowStep {
     }
 }
 
-/// A recorded event; `name` indexes the interned names (high-rate events repeat few names).
-#[derive(Debug)]
-struct Event {
-    ts: u64,
-    seq: u64,
-    name: u32,
-    kind: Kind,
-    args: Args,
-}
-
 /// A run of grouped slices merged so far.
 #[derive(Clone, Copy, Debug)]
 struct Group {
@@ -144,12 +142,129 @@ struct Group {
 /// Identifies the slices that may merge: same track, same name, same `min_gap`.
 type GroupKey = (TrackId, u32, u64);
 
+/// A run of grouped slices no longer the latest of its key, kept for the output's merge in
+/// key, start and recording order (the order runs merge in).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+struct GroupRun {
+    key: GroupKey,
+    start: u64,
+    seq: u64,
+    end: u64,
+    count: u64,
+    clipped: bool,
+}
+
+impl SortKey for GroupRun {
+    const BYTES: usize = 53;
+
+    fn put(&self, b: &mut [u8]) {
+        let (TrackId(track), name, min_gap) = self.key;
+        b[0..8].copy_from_slice(&(track as u64).to_le_bytes());
+        b[8..12].copy_from_slice(&name.to_le_bytes());
+        for (i, v) in [min_gap, self.start, self.seq, self.end, self.count]
+            .into_iter()
+            .enumerate()
+        {
+            b[12 + 8 * i..20 + 8 * i].copy_from_slice(&v.to_le_bytes());
+        }
+        b[52] = u8::from(self.clipped);
+    }
+
+    fn get(b: &[u8]) -> GroupRun {
+        let u = |i: usize| u64::from_le_bytes(b[i..i + 8].try_into().expect("8 bytes"));
+        let name = u32::from_le_bytes(b[8..12].try_into().expect("4 bytes"));
+        GroupRun {
+            key: (TrackId(u(0) as usize), name, u(12)),
+            start: u(20),
+            seq: u(28),
+            end: u(36),
+            count: u(44),
+            clipped: b[52] != 0,
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug)]
 struct CounterSample {
     at: u64,
     seq: u64,
     value: i64,
 }
+
+/// An event's place in the output (by timestamp, then `rank`, then longer slices first, then
+/// recording order) beside its JSON text, which is made as it is recorded (its process and
+/// thread ids and its name are known by then).
+#[derive(Clone, Copy, Debug)]
+struct LineKey {
+    ts: u64,
+    /// 0 for a counter's value carried to the window start, which later samples at the same
+    /// instant must override; 1 for everything else.
+    rank: u8,
+    /// A slice's duration (0 for the other kinds).
+    dur: u64,
+    seq: u64,
+    /// A slice's track and name, for [`ChromeTrace::check_nesting`]; `NOT_A_SLICE` otherwise.
+    track: u32,
+    name: u32,
+}
+
+/// [`LineKey::track`] of an event that is not a slice.
+const NOT_A_SLICE: u32 = u32::MAX;
+
+impl LineKey {
+    fn order(&self) -> (u64, u8, Reverse<u64>, u64) {
+        (self.ts, self.rank, Reverse(self.dur), self.seq)
+    }
+}
+
+// `seq` is unique, so the order is total and equal orders mean the same event.
+impl PartialEq for LineKey {
+    fn eq(&self, other: &LineKey) -> bool {
+        self.order() == other.order()
+    }
+}
+impl Eq for LineKey {}
+impl PartialOrd for LineKey {
+    fn partial_cmp(&self, other: &LineKey) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+impl Ord for LineKey {
+    fn cmp(&self, other: &LineKey) -> std::cmp::Ordering {
+        self.order().cmp(&other.order())
+    }
+}
+
+impl SortKey for LineKey {
+    const BYTES: usize = 33;
+
+    fn put(&self, b: &mut [u8]) {
+        b[0..8].copy_from_slice(&self.ts.to_le_bytes());
+        b[8] = self.rank;
+        b[9..17].copy_from_slice(&self.dur.to_le_bytes());
+        b[17..25].copy_from_slice(&self.seq.to_le_bytes());
+        b[25..29].copy_from_slice(&self.track.to_le_bytes());
+        b[29..33].copy_from_slice(&self.name.to_le_bytes());
+    }
+
+    fn get(b: &[u8]) -> LineKey {
+        let u64_at = |i: usize| u64::from_le_bytes(b[i..i + 8].try_into().expect("8 bytes"));
+        let u32_at = |i: usize| u32::from_le_bytes(b[i..i + 4].try_into().expect("4 bytes"));
+        LineKey {
+            ts: u64_at(0),
+            rank: b[8],
+            dur: u64_at(9),
+            seq: u64_at(17),
+            track: u32_at(25),
+            name: u32_at(29),
+        }
+    }
+}
+
+/// How many bytes of events a trace that spills ([`ChromeTrace::spill_to`]) holds in memory
+/// before it writes a sorted run to disk; the grouped runs have a budget of their own, as
+/// large.
+pub const SPILL_AT: usize = 4 << 20;
 
 /// A builder of a Chrome trace-event JSON file over simulated time. See the module docs for the
 /// output format.
@@ -164,13 +279,21 @@ pub struct ChromeTrace {
     next_id: u32,
     names: Vec<String>,
     name_ids: HashMap<String, u32>,
-    events: Vec<Event>,
+    /// The recorded events, rendered.
+    lines: ExternalSort<LineKey>,
     // BTreeMaps, not HashMaps, where iteration feeds the output: the final sort makes the order
     // total anyway, but no output should ever hinge on hash order.
-    groups: BTreeMap<GroupKey, Vec<Group>>,
+    /// Per key, its latest run, which the next slice of the key may continue.
+    open: BTreeMap<GroupKey, Group>,
+    /// The runs that are no longer the latest of their key.
+    closed: ExternalSort<GroupRun>,
     /// Per (process, counter name): the latest sample before the window start.
     counter_carry: BTreeMap<(usize, u32), CounterSample>,
+    /// The counters with a sample of their own at the window start: nothing is carried to them.
+    sampled_at_start: BTreeSet<(usize, u32)>,
     seq: u64,
+    /// Where an event is rendered before it is kept (host work only).
+    scratch: Vec<u8>,
 }
 
 impl Default for ChromeTrace {
@@ -191,11 +314,42 @@ impl ChromeTrace {
             next_id: 1,
             names: Vec::new(),
             name_ids: HashMap::new(),
-            events: Vec::new(),
-            groups: BTreeMap::new(),
+            lines: ExternalSort::default(),
+            open: BTreeMap::new(),
+            closed: ExternalSort::default(),
             counter_carry: BTreeMap::new(),
+            sampled_at_start: BTreeSet::new(),
             seq: 0,
+            scratch: Vec::new(),
         }
+    }
+
+    /// This trace with bounded memory: past [`SPILL_AT`] bytes of events, it sorts what it holds
+    /// and writes it to an anonymous temporary file in `dir` (gone when the trace is), and
+    /// [`ChromeTrace::write`] merges the files. The output is the same bytes as without. Call it
+    /// before recording; a spill's error is returned by `write`.
+    pub fn spill_to(self, dir: PathBuf) -> ChromeTrace {
+        self.spill_at(dir, SPILL_AT)
+    }
+
+    /// [`ChromeTrace::spill_to`] with a budget of `bytes` (tests spill small traces with it).
+    pub fn spill_at(mut self, dir: PathBuf, bytes: usize) -> ChromeTrace {
+        self.lines = ExternalSort::spilling(dir.clone(), bytes);
+        self.closed = ExternalSort::spilling(dir, bytes);
+        self
+    }
+
+    /// How many sorted runs went to disk so far (0 unless [`ChromeTrace::spill_to`]).
+    pub fn spilled_runs(&self) -> usize {
+        self.lines.runs() + self.closed.runs()
+    }
+
+    /// The bytes of events held in memory now: for a trace that spills, at most about twice its
+    /// budget, whatever the length of the run.
+    pub fn held_bytes(&self) -> usize {
+        self.lines.held()
+            + self.closed.held()
+            + self.open.len() * std::mem::size_of::<(GroupKey, Group)>()
     }
 
     /// The window this trace keeps.
@@ -254,17 +408,9 @@ impl ChromeTrace {
         if clipped {
             args.insert("clipped".to_owned(), JsonValue::Bool(true));
         }
-        let event = Event {
-            ts: start,
-            seq: self.next_seq(),
-            name: self.intern(name),
-            kind: Kind::Slice {
-                track,
-                dur: end - start,
-            },
-            args,
-        };
-        self.events.push(event);
+        let (seq, name) = (self.next_seq(), self.intern(name));
+        let dur = end - start;
+        self.record(start, seq, name, Kind::Slice { track, dur }, &args);
     }
 
     /// Records a slice of a high-rate kind (e.g. Renderer commands), merged with the other slices
@@ -290,25 +436,30 @@ impl ChromeTrace {
         };
         let seq = self.next_seq();
         let key = (track, self.intern(name), min_gap.as_ps());
-        let runs = self.groups.entry(key).or_default();
-        // Merge into the latest run when this slice continues it; anything else (an early slice
-        // recorded late) starts a run of its own, and `grouped_events` merges runs on output.
-        if let Some(last) = runs.last_mut()
-            && start >= last.start
-            && start < last.end.saturating_add(min_gap.as_ps())
-        {
-            last.end = last.end.max(end);
-            last.count += 1;
-            last.clipped |= clipped;
-            return;
-        }
-        runs.push(Group {
+        let run = Group {
             start,
             end,
             count: 1,
             clipped,
             seq,
-        });
+        };
+        // Merge into the latest run when this slice continues it; anything else (an early slice
+        // recorded late) starts a run of its own, and `merged_groups` merges runs on output.
+        let last = match self.open.entry(key) {
+            Entry::Vacant(v) => {
+                v.insert(run);
+                return;
+            }
+            Entry::Occupied(o) => o.into_mut(),
+        };
+        if start >= last.start && start < last.end.saturating_add(min_gap.as_ps()) {
+            last.end = last.end.max(end);
+            last.count += 1;
+            last.clipped |= clipped;
+            return;
+        }
+        let done = std::mem::replace(last, run);
+        self.closed.push(GroupRun::of(key, done), &[]);
     }
 
     /// Records an instant event (a thread-scoped marker) at `at` on `track`.
@@ -333,14 +484,8 @@ impl ChromeTrace {
         if !self.window.contains(at) {
             return;
         }
-        let event = Event {
-            ts: at.as_ps(),
-            seq: self.next_seq(),
-            name: self.intern(name),
-            kind,
-            args,
-        };
-        self.events.push(event);
+        let (seq, name) = (self.next_seq(), self.intern(name));
+        self.record(at.as_ps(), seq, name, kind, &args);
     }
 
     /// Records a step of flow `id` (named `name`: Perfetto links the events of one flow by name
@@ -375,59 +520,59 @@ impl ChromeTrace {
                 .or_insert(sample);
             return;
         }
-        self.events.push(Event {
-            ts: at,
+        if at == self.window.start.as_ps() {
+            self.sampled_at_start.insert((process, name));
+        }
+        self.record(
+            at,
             seq,
             name,
-            kind: Kind::Counter { process, value },
-            args: Args::new(),
-        });
+            Kind::Counter { process, value },
+            &Args::new(),
+        );
     }
 
     /// Checks that on every track the slices to be written (after clipping and grouping) are
-    /// properly nested or disjoint, which Perfetto needs to draw them; reports the first pair that
-    /// overlaps without nesting (boxed: it is large and errors are rare).
-    pub fn check_nesting(&self) -> Result<(), Box<NestingError>> {
-        let mut per_track: BTreeMap<TrackId, Vec<(u64, u64, u32)>> = BTreeMap::new();
-        for e in self.output_events() {
-            if let Kind::Slice { track, dur } = e.kind {
-                per_track
-                    .entry(track)
-                    .or_default()
-                    .push((e.ts, e.ts + dur, e.name));
+    /// properly nested or disjoint, which Perfetto needs to draw them: `Some` names the first
+    /// pair that overlaps without nesting (boxed: it is large and rare). Reads the spilled runs
+    /// again, and fails with their error (or a spill's) if there is one.
+    pub fn check_nesting(&self) -> io::Result<Option<Box<NestingError>>> {
+        // Output order puts an enclosing slice before what it encloses, so a stack of open
+        // slices per track suffices, over the merged output as it comes.
+        let mut open: BTreeMap<u32, Vec<(u64, u64, u32)>> = BTreeMap::new();
+        let mut found = None;
+        self.output(|line, _| {
+            if line.track == NOT_A_SLICE || found.is_some() {
+                return Ok(());
             }
-        }
-        for (track, slices) in per_track {
-            // Output order puts an enclosing slice before what it encloses, so a stack of open
-            // slices' ends suffices.
-            let mut open: Vec<(u64, u64, u32)> = Vec::new();
-            for (start, end, name) in slices {
-                while open.last().is_some_and(|&(_, e, _)| e <= start) {
-                    open.pop();
-                }
-                if let Some(&(o_start, o_end, o_name)) = open.last()
-                    && end > o_end
-                {
-                    let t = &self.tracks[track.0];
-                    return Err(Box::new(NestingError {
-                        process: self.processes[t.process].name.clone(),
-                        thread: t.name.clone(),
-                        outer: SliceSpan {
-                            name: self.names[o_name as usize].clone(),
-                            start: Tick(o_start),
-                            end: Tick(o_end),
-                        },
-                        inner: SliceSpan {
-                            name: self.names[name as usize].clone(),
-                            start: Tick(start),
-                            end: Tick(end),
-                        },
-                    }));
-                }
-                open.push((start, end, name));
+            let (start, end, name) = (line.ts, line.ts + line.dur, line.name);
+            let stack = open.entry(line.track).or_default();
+            while stack.last().is_some_and(|&(_, e, _)| e <= start) {
+                stack.pop();
             }
-        }
-        Ok(())
+            if let Some(&(o_start, o_end, o_name)) = stack.last()
+                && end > o_end
+            {
+                let t = &self.tracks[line.track as usize];
+                found = Some(Box::new(NestingError {
+                    process: self.processes[t.process].name.clone(),
+                    thread: t.name.clone(),
+                    outer: SliceSpan {
+                        name: self.names[o_name as usize].clone(),
+                        start: Tick(o_start),
+                        end: Tick(o_end),
+                    },
+                    inner: SliceSpan {
+                        name: self.names[name as usize].clone(),
+                        start: Tick(start),
+                        end: Tick(end),
+                    },
+                }));
+            }
+            stack.push((start, end, name));
+            Ok(())
+        })?;
+        Ok(found)
     }
 
     /// Writes the trace as JSON to `w` (wrap a file in a `BufWriter`: this writes in small pieces).
@@ -483,16 +628,59 @@ impl ChromeTrace {
                 t.tid
             )?;
         }
-        for e in self.output_events() {
+        self.output(|_, text| {
             separator(&mut w)?;
-            self.write_event(&mut w, &e)?;
-        }
+            w.write_all(text)
+        })?;
         w.write_all(b"\n]}\n")
     }
 
-    fn write_event<W: Write>(&self, w: &mut W, e: &OutEvent<'_>) -> io::Result<()> {
-        let name = &self.names[e.name as usize];
-        match e.kind {
+    /// The JSON text of an event.
+    /// Records the event, rendered.
+    fn record(&mut self, ts: u64, seq: u64, name: u32, kind: Kind, args: &Args) {
+        let mut scratch = std::mem::take(&mut self.scratch);
+        let key = self.line(&mut scratch, ts, seq, name, kind, args);
+        self.lines.push(key, &scratch);
+        self.scratch = scratch;
+    }
+
+    /// The event's key, its text rendered in `scratch` (cleared first).
+    fn line(
+        &self,
+        scratch: &mut Vec<u8>,
+        ts: u64,
+        seq: u64,
+        name: u32,
+        kind: Kind,
+        args: &Args,
+    ) -> LineKey {
+        scratch.clear();
+        self.render(scratch, ts, name, kind, args)
+            .expect("writing to a Vec cannot fail");
+        let (track, dur) = match kind {
+            Kind::Slice { track, dur } => (track.0 as u32, dur),
+            _ => (NOT_A_SLICE, 0),
+        };
+        LineKey {
+            ts,
+            rank: 1,
+            dur,
+            seq,
+            track,
+            name,
+        }
+    }
+
+    fn render(
+        &self,
+        w: &mut Vec<u8>,
+        ts: u64,
+        name: u32,
+        kind: Kind,
+        args: &Args,
+    ) -> io::Result<()> {
+        let name = &self.names[name as usize];
+        match kind {
             Kind::Slice { track, dur } if dur > 0 => {
                 let t = &self.tracks[track.0];
                 w.write_all(b"{\"ph\":\"X\",\"name\":")?;
@@ -502,7 +690,7 @@ impl ChromeTrace {
                     ",\"pid\":{},\"tid\":{},\"ts\":{},\"dur\":{}",
                     self.processes[t.process].pid,
                     t.tid,
-                    Micros(e.ts),
+                    Micros(ts),
                     Micros(dur)
                 )?;
             }
@@ -516,7 +704,7 @@ impl ChromeTrace {
                     ",\"pid\":{},\"tid\":{},\"ts\":{}",
                     self.processes[t.process].pid,
                     t.tid,
-                    Micros(e.ts)
+                    Micros(ts)
                 )?;
             }
             Kind::Counter { process, value } => {
@@ -526,7 +714,7 @@ impl ChromeTrace {
                     w,
                     ",\"pid\":{},\"ts\":{},\"args\":{{\"value\":{value}}}}}",
                     self.processes[process].pid,
-                    Micros(e.ts)
+                    Micros(ts)
                 )?;
                 return Ok(());
             }
@@ -543,110 +731,92 @@ impl ChromeTrace {
                     ",\"id\":{id},\"pid\":{},\"tid\":{},\"ts\":{},\"bp\":\"e\"}}",
                     self.processes[t.process].pid,
                     t.tid,
-                    Micros(e.ts)
+                    Micros(ts)
                 )?;
                 return Ok(());
             }
         }
-        let args = e.args.map();
         if !args.is_empty() {
             w.write_all(b",\"args\":")?;
-            write_object(w, &args)?;
+            write_object(w, args)?;
         }
         w.write_all(b"}")
     }
 
-    /// Every event to write, sorted: recorded ones, merged grouped slices and carried counters.
-    fn output_events(&self) -> Vec<OutEvent<'_>> {
-        let mut out: Vec<OutEvent<'_>> = self
-            .events
-            .iter()
-            .map(|e| OutEvent {
-                ts: e.ts,
-                rank: 1,
-                seq: e.seq,
-                name: e.name,
-                kind: e.kind,
-                args: OutArgs::Recorded(&e.args),
-            })
-            .collect();
-        self.grouped_events(&mut out);
-        self.carried_counters(&mut out);
-        // `seq` is unique, so this is a total order and the sort's stability is irrelevant.
-        out.sort_unstable_by_key(|e| {
-            let dur = match e.kind {
-                Kind::Slice { dur, .. } => dur,
-                _ => 0,
-            };
-            (e.ts, e.rank, Reverse(dur), e.seq)
-        });
-        out
+    /// Calls `f` with every event to write, in order, and its text: the recorded ones, the
+    /// merged grouped slices and the carried counters.
+    fn output(&self, mut f: impl FnMut(LineKey, &[u8]) -> io::Result<()>) -> io::Result<()> {
+        let mut scratch = Vec::new();
+        let groups = self.merged_groups(&mut scratch)?;
+        let mut carried = ExternalSort::default();
+        self.carried_counters(&mut scratch, &mut carried);
+        merge(&[&self.lines, &groups, &carried], |key, text| f(key, text))
     }
 
-    fn grouped_events<'a>(&'a self, out: &mut Vec<OutEvent<'a>>) {
-        for (&(track, name, min_gap), runs) in &self.groups {
-            let mut runs = runs.clone();
-            runs.sort_unstable_by_key(|g| (g.start, g.seq));
-            let mut merged: Vec<Group> = Vec::with_capacity(runs.len());
-            for g in runs {
-                match merged.last_mut() {
-                    Some(last) if g.start < last.end.saturating_add(min_gap) => {
-                        last.end = last.end.max(g.end);
-                        last.count += g.count;
-                        last.clipped |= g.clipped;
-                        last.seq = last.seq.min(g.seq);
+    /// The grouped slices' runs merged, each run one slice: runs of a key merge, in start and
+    /// recording order, while each starts less than `min_gap` after the end so far.
+    fn merged_groups(&self, scratch: &mut Vec<u8>) -> io::Result<ExternalSort<LineKey>> {
+        let mut out = self.lines.like();
+        let mut open = ExternalSort::default();
+        for (&key, &g) in &self.open {
+            open.push(GroupRun::of(key, g), &[]);
+        }
+        let mut current: Option<GroupRun> = None;
+        merge(&[&self.closed, &open], |g, _| {
+            match &mut current {
+                Some(last) if last.key == g.key && g.start < last.end.saturating_add(g.key.2) => {
+                    last.end = last.end.max(g.end);
+                    last.count += g.count;
+                    last.clipped |= g.clipped;
+                    last.seq = last.seq.min(g.seq);
+                }
+                _ => {
+                    if let Some(done) = current.replace(g) {
+                        let key = self.group_line(scratch, done);
+                        out.push(key, scratch);
                     }
-                    _ => merged.push(g),
                 }
             }
-            for g in merged {
-                out.push(OutEvent {
-                    ts: g.start,
-                    rank: 1,
-                    seq: g.seq,
-                    name,
-                    kind: Kind::Slice {
-                        track,
-                        dur: g.end - g.start,
-                    },
-                    args: OutArgs::Group {
-                        count: g.count,
-                        clipped: g.clipped,
-                    },
-                });
-            }
+            Ok(())
+        })?;
+        if let Some(done) = current {
+            let key = self.group_line(scratch, done);
+            out.push(key, scratch);
         }
+        Ok(out)
+    }
+
+    /// A merged run as a slice, with the args `count` and, if a member was, `clipped`.
+    fn group_line(&self, scratch: &mut Vec<u8>, g: GroupRun) -> LineKey {
+        let (track, name, _) = g.key;
+        let mut args = Args::new();
+        args.insert("count".to_owned(), JsonValue::from(g.count));
+        if g.clipped {
+            args.insert("clipped".to_owned(), JsonValue::Bool(true));
+        }
+        let kind = Kind::Slice {
+            track,
+            dur: g.end - g.start,
+        };
+        self.line(scratch, g.start, g.seq, name, kind, &args)
     }
 
     /// Adds, at the window start, each counter's last value from before the window, unless the
     /// counter has a sample of its own exactly there.
-    fn carried_counters<'a>(&'a self, out: &mut Vec<OutEvent<'a>>) {
+    fn carried_counters(&self, scratch: &mut Vec<u8>, out: &mut ExternalSort<LineKey>) {
         let start = self.window.start.as_ps();
-        let sampled_at_start: BTreeSet<(usize, u32)> = self
-            .events
-            .iter()
-            .filter(|e| e.ts == start)
-            .filter_map(|e| match e.kind {
-                Kind::Counter { process, .. } => Some((process, e.name)),
-                _ => None,
-            })
-            .collect();
         for (&(process, name), sample) in &self.counter_carry {
-            if sampled_at_start.contains(&(process, name)) {
+            if self.sampled_at_start.contains(&(process, name)) {
                 continue;
             }
-            out.push(OutEvent {
-                ts: start,
-                // Before anything else at the window start.
-                rank: 0,
-                seq: sample.seq,
-                name,
-                kind: Kind::Counter {
-                    process,
-                    value: sample.value,
-                },
-                args: OutArgs::None,
-            });
+            let kind = Kind::Counter {
+                process,
+                value: sample.value,
+            };
+            let mut key = self.line(scratch, start, sample.seq, name, kind, &Args::new());
+            // Before anything else at the window start.
+            key.rank = 0;
+            out.push(key, scratch);
         }
     }
 
@@ -688,53 +858,25 @@ impl ChromeTrace {
     }
 }
 
+impl GroupRun {
+    fn of(key: GroupKey, g: Group) -> GroupRun {
+        GroupRun {
+            key,
+            start: g.start,
+            seq: g.seq,
+            end: g.end,
+            count: g.count,
+            clipped: g.clipped,
+        }
+    }
+}
+
 /// The whole JSON text (what [`ChromeTrace::write`] writes).
 impl fmt::Display for ChromeTrace {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let mut bytes = Vec::new();
         self.write(&mut bytes).map_err(|_| fmt::Error)?;
         f.write_str(std::str::from_utf8(&bytes).map_err(|_| fmt::Error)?)
-    }
-}
-
-/// An event as written: borrowed from the recorded ones where possible.
-struct OutEvent<'a> {
-    ts: u64,
-    /// Orders events at equal timestamps before duration and sequence: 0 for values carried to
-    /// the window start, which later samples at the same instant must override.
-    rank: u8,
-    seq: u64,
-    name: u32,
-    kind: Kind,
-    args: OutArgs<'a>,
-}
-
-/// An output event's args: a recorded event's own, or a merged run's `count` and `clipped`,
-/// made only as the event is written (a run of Renderer commands is most of a trace's events,
-/// and a map per run held them all at once: 80 MB of the 131 MB peak of a traced 10,000-triangle
-/// run, by massif).
-#[derive(Clone, Copy, Debug)]
-enum OutArgs<'a> {
-    Recorded(&'a Args),
-    Group { count: u64, clipped: bool },
-    None,
-}
-
-impl OutArgs<'_> {
-    /// The args as a map, borrowed where they were recorded.
-    fn map(&self) -> Cow<'_, Args> {
-        match *self {
-            OutArgs::Recorded(args) => Cow::Borrowed(args),
-            OutArgs::Group { count, clipped } => {
-                let mut args = Args::new();
-                args.insert("count".to_owned(), JsonValue::from(count));
-                if clipped {
-                    args.insert("clipped".to_owned(), JsonValue::Bool(true));
-                }
-                Cow::Owned(args)
-            }
-            OutArgs::None => Cow::Owned(Args::new()),
-        }
     }
 }
 

@@ -37,11 +37,12 @@ mod event_trace;
 mod json;
 mod perfetto;
 pub mod proto;
+mod spill;
 mod vcd_trace;
 mod window;
 
 pub use chrome::{
-    Args, ChromeTrace, FlowStep, Micros, NestingError, RESERVED_METADATA_KEYS, SliceSpan,
+    Args, ChromeTrace, FlowStep, Micros, NestingError, RESERVED_METADATA_KEYS, SPILL_AT, SliceSpan,
     TIME_UNIT_NOTE, TrackId,
 };
 pub use event_trace::EventTrace;

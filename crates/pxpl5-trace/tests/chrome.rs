@@ -329,7 +329,7 @@ fn enclosing_slices_come_first_at_equal_timestamps() {
         }
         let names: Vec<Value> = events(&t).iter().map(|e| e["name"].clone()).collect();
         assert_eq!(names, vec![json!("outer"), json!("inner")]);
-        assert_eq!(t.check_nesting(), Ok(()));
+        assert_eq!(t.check_nesting().unwrap(), None);
     }
 }
 
@@ -591,10 +591,10 @@ fn nesting_check() {
     let other = t.track("GPs", "GP 1");
     t.slice(other, "x", Tick(0), Tick(50), Args::new());
     t.slice(other, "y", Tick(0), Tick(50), Args::new());
-    assert_eq!(t.check_nesting(), Ok(()));
+    assert_eq!(t.check_nesting().unwrap(), None);
 
     t.slice(tr, "straddles", Tick(15), Tick(30), Args::new());
-    let err = t.check_nesting().unwrap_err();
+    let err = t.check_nesting().unwrap().expect("the straddling slice");
     assert_eq!(err.process, "GPs");
     assert_eq!(err.thread, "GP 0");
     assert_eq!(err.outer.name, "a");
@@ -756,4 +756,91 @@ fn flows_are_chains_of_bound_steps_in_time_order() {
     u.flow(ring, "message", 4, FlowStep::End, Tick(20_000));
     u.slice(gp, "message send", Tick(0), Tick(10_000), Args::new());
     assert_eq!(t.to_string(), u.to_string());
+}
+
+/// A trace that spills to disk writes the bytes of one held in memory: random slices (some
+/// nested, some recorded late), grouped slices (in order and out of it, some touching, some of
+/// zero length), instants, flows and counters (some before the window), in four windows, with a
+/// budget small enough for dozens of runs. Memory stays within the budget.
+#[test]
+fn a_spilling_trace_writes_the_bytes_of_one_held_in_memory() {
+    let windows = ["1us..2us", "5ps..", "0..300ns"].map(window);
+    for w in [TraceWindow::all()].into_iter().chain(windows) {
+        let budget = 4096;
+        let mut held = ChromeTrace::new(w);
+        let mut spilled = ChromeTrace::new(w).spill_at(std::env::temp_dir(), budget);
+        // xorshift64: any fixed sequence will do.
+        let mut state = 0x0005_EED0_F0DD_0BB5_u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let mut now = 0u64;
+        let mut most = 0;
+        for i in 0..20_000u64 {
+            now += next() % 300;
+            let r = next();
+            let start = if r % 7 == 0 { now / 2 } else { now };
+            let len = (r >> 8) % 500;
+            let name = ["a", "b", "c"][(r >> 20) as usize % 3];
+            let track = format!("GP {}", (r >> 24) % 3);
+            let gap = Tick((r >> 28) % 3);
+            for t in [&mut held, &mut spilled] {
+                let tr = t.track("GPs", &track);
+                match (r >> 32) % 6 {
+                    0 => t.slice(
+                        tr,
+                        name,
+                        Tick(start),
+                        Tick(start + len),
+                        [("i", JsonValue::from(i))],
+                    ),
+                    1 | 2 => t.slice_grouped(tr, name, Tick(start), Tick(start + len % 3), gap),
+                    3 => t.instant(tr, name, Tick(start)),
+                    4 => t.flow(tr, "msg", i, FlowStep::Step, Tick(start)),
+                    _ => t.counter("Ring", name, Tick(start), (r % 11) as i64 - 5),
+                }
+            }
+            most = most.max(spilled.held_bytes());
+        }
+        held.metadata("simulated_end_ps", now);
+        spilled.metadata("simulated_end_ps", now);
+        assert_eq!(held.spilled_runs(), 0);
+        assert!(
+            spilled.spilled_runs() > 10,
+            "{w}: {} runs",
+            spilled.spilled_runs()
+        );
+        // Each sort holds up to its budget and one record more; the open runs are one per key.
+        assert!(most < 3 * budget, "{w}: {most} bytes held");
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        held.write(&mut a).unwrap();
+        spilled.write(&mut b).unwrap();
+        assert!(a == b, "{w}: spilled output differs");
+        // Written twice, the same bytes: the runs are read again from their start.
+        let mut c = Vec::new();
+        spilled.write(&mut c).unwrap();
+        assert!(b == c, "{w}: a second write differs");
+        assert_eq!(
+            held.check_nesting().unwrap().map(|e| e.to_string()),
+            spilled.check_nesting().unwrap().map(|e| e.to_string())
+        );
+    }
+}
+
+/// A trace whose spill directory cannot hold its runs says so when it is written.
+#[test]
+fn a_spill_error_is_returned_by_write() {
+    let dir = std::env::temp_dir()
+        .join("pxpl5-no-such-dir")
+        .join("deeper");
+    let mut t = ChromeTrace::default().spill_at(dir, 64);
+    let gp = t.track("GPs", "GP 0");
+    for i in 0..100 {
+        t.slice(gp, "x", Tick(i), Tick(i + 1), Args::new());
+    }
+    let err = t.write(Vec::new()).expect_err("no directory to spill to");
+    assert!(err.to_string().contains("cannot spill the trace"), "{err}");
 }
