@@ -51,7 +51,7 @@ impl JsonValue {
         match self {
             JsonValue::Null => w.write_all(b"null"),
             JsonValue::Bool(b) => w.write_all(if *b { b"true" } else { b"false" }),
-            JsonValue::Integer(n) => write!(w, "{n}"),
+            JsonValue::Integer(n) => w.write_all(itoa::Buffer::new().format(*n).as_bytes()),
             JsonValue::String(s) => write_string(w, s),
             JsonValue::Array(items) => {
                 w.write_all(b"[")?;
