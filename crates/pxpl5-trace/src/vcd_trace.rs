@@ -39,7 +39,7 @@ use std::fmt;
 use std::io::{self, Write};
 
 use pxpl5_sim::Tick;
-use vcd::{IdCode, ReferenceIndex, SimulationCommand, TimescaleUnit, Value, VarType};
+use vcd::{IdCode, ReferenceIndex, SimulationCommand, TimescaleUnit, VarType};
 
 use crate::window::TraceWindow;
 
@@ -132,6 +132,10 @@ impl fmt::Debug for Stream {
 struct Body {
     current: Vec<u64>,
     last_time: Tick,
+    /// Each wire's identifier code as the vcd crate writes it, made once.
+    ids: Vec<Box<[u8]>>,
+    /// The text of the changes being written, sent to the writer in one piece per batch.
+    text: Vec<u8>,
 }
 
 /// A builder of a VCD file over simulated time. See the module docs for the output format.
@@ -150,6 +154,8 @@ pub struct VcdTrace {
     /// Changes inside the window, after its start, in recording order; when streamed, only
     /// those not yet written.
     changes: Vec<Change>,
+    /// The other buffer of [`sort_changes`] (host work only).
+    scratch: Vec<Change>,
     /// Set for a trace written as it is recorded ([`VcdTrace::streamed`]).
     stream: Option<Stream>,
 }
@@ -178,6 +184,7 @@ impl VcdTrace {
             texts: Vec::new(),
             text_ids: HashMap::new(),
             changes: Vec::new(),
+            scratch: Vec::new(),
             stream: None,
         }
     }
@@ -404,8 +411,8 @@ impl VcdTrace {
                     Err(e) => stream.error = Some(e),
                 }
             }
-            sort_changes(&mut self.changes);
-            let n = self.changes.partition_point(|&(at, _, _)| at < before);
+            sort_changes(&mut self.changes, &mut self.scratch);
+            let n = self.changes.partition_point(|&(at, ..)| at < before);
             if stream.error.is_none()
                 && let Some(body) = &mut stream.body
                 && let Err(e) = self.write_changes(&mut stream.out, body, &self.changes[..n])
@@ -436,7 +443,7 @@ impl VcdTrace {
         let mut out = vcd::Writer::new(w);
         let mut body = self.begin_body(&mut out)?;
         let mut changes = self.changes.clone();
-        sort_changes(&mut changes);
+        sort_changes(&mut changes, &mut Vec::new());
         self.write_changes(&mut out, &mut body, &changes)?;
         self.end_body(&mut out, &body)
     }
@@ -473,16 +480,24 @@ impl VcdTrace {
             .iter()
             .map(|s| s.initial.map_or(0, |(_, v)| v))
             .collect();
-        out.timestamp(self.window.start.as_ps())?;
-        out.begin(SimulationCommand::Dumpvars)?;
-        for (index, &value) in current.iter().enumerate() {
-            self.write_value(out, index, value)?;
-        }
-        out.end()?;
-        Ok(Body {
+        let mut body = Body {
+            ids: (0..self.signals.len())
+                .map(|i| id_code(i).to_string().into_bytes().into_boxed_slice())
+                .collect(),
             current,
             last_time: self.window.start,
-        })
+            text: Vec::new(),
+        };
+        out.timestamp(self.window.start.as_ps())?;
+        out.begin(SimulationCommand::Dumpvars)?;
+        for index in 0..body.current.len() {
+            let value = body.current[index];
+            self.encode_value(&mut body, index, value);
+        }
+        out.writer().write_all(&body.text)?;
+        body.text.clear();
+        out.end()?;
+        Ok(body)
     }
 
     /// Writes `changes`, sorted by [`sort_changes`] and holding every change at each instant
@@ -493,20 +508,30 @@ impl VcdTrace {
         body: &mut Body,
         changes: &[Change],
     ) -> io::Result<()> {
+        let mut n = itoa::Buffer::new();
         for (i, &(at, index, value)) in changes.iter().enumerate() {
             let superseded = changes
                 .get(i + 1)
-                .is_some_and(|&(next_at, next_index, _)| (next_at, next_index) == (at, index));
+                .is_some_and(|&(next_at, next_index, ..)| (next_at, next_index) == (at, index));
             if superseded || body.current[index] == value {
                 continue;
             }
             if at != body.last_time {
-                out.timestamp(at.as_ps())?;
+                // As `vcd::Writer::timestamp` writes it.
+                body.text.push(b'#');
+                body.text.extend_from_slice(n.format(at.as_ps()).as_bytes());
+                body.text.push(b'\n');
                 body.last_time = at;
             }
-            self.write_value(out, index, value)?;
+            self.encode_value(body, index, value);
             body.current[index] = value;
+            if body.text.len() >= 1 << 16 {
+                out.writer().write_all(&body.text)?;
+                body.text.clear();
+            }
         }
+        out.writer().write_all(&body.text)?;
+        body.text.clear();
         Ok(())
     }
 
@@ -523,9 +548,59 @@ impl VcdTrace {
 }
 
 /// Changes in the order they are written: by time, then wire creation order. Stable, so changes
-/// to one wire at one instant stay in recording order and the last wins.
-fn sort_changes(changes: &mut [Change]) {
-    changes.sort_by_key(|&(at, index, _)| (at, index));
+/// to one wire at one instant stay in the order they are held in, which is recording order (the
+/// changes a flush kept are sorted and older than any recorded after it), and the last wins.
+///
+/// A least-significant-digit radix sort, a byte at a time, by wire and then by time since the
+/// batch's first instant, skipping the bytes every change shares: a batch spans little time,
+/// so a few passes suffice. The standard library's stable sort took two thirds of a streamed
+/// VCD's cost (188 M instructions for the 5 batches of 65,536 changes of a 20-shot radiosity
+/// run).
+fn sort_changes(changes: &mut Vec<Change>, scratch: &mut Vec<Change>) {
+    if changes.len() < 64 {
+        changes.sort_by_key(|&(at, index, _)| (at, index));
+        return;
+    }
+    let min = changes.iter().map(|c| c.0.as_ps()).min().unwrap_or(0);
+    let max_dt = changes.iter().map(|c| c.0.as_ps() - min).max().unwrap_or(0);
+    let max_index = changes.iter().map(|c| c.1 as u64).max().unwrap_or(0);
+    // The bytes that can differ: those of the largest wire number and time offset.
+    let bytes = |max: u64| (64 - max.leading_zeros()).div_ceil(8);
+    let passes = (0..bytes(max_index))
+        .map(|k| (false, 8 * k))
+        .chain((0..bytes(max_dt)).map(|k| (true, 8 * k)));
+    // Each pass moves the changes from one buffer to the other; the buffers trade places.
+    scratch.clear();
+    scratch.resize(changes.len(), (Tick::ZERO, 0, 0));
+    let (src, dst) = (changes, scratch);
+    for (by_time, shift) in passes {
+        let digit = |c: &Change| {
+            let key = if by_time {
+                c.0.as_ps() - min
+            } else {
+                c.1 as u64
+            };
+            (key >> shift) as usize & 0xff
+        };
+        let mut counts = [0usize; 256];
+        for c in src.iter() {
+            counts[digit(c)] += 1;
+        }
+        if counts.contains(&src.len()) {
+            // Every change has this byte: the pass would keep the order.
+            continue;
+        }
+        let mut at = 0;
+        for n in counts.iter_mut() {
+            (*n, at) = (at, at + *n);
+        }
+        for &c in src.iter() {
+            let d = digit(&c);
+            dst[counts[d]] = c;
+            counts[d] += 1;
+        }
+        std::mem::swap(src, dst);
+    }
 }
 
 /// The whole VCD text (what [`VcdTrace::write`] writes).
@@ -538,36 +613,33 @@ impl fmt::Display for VcdTrace {
 }
 
 impl VcdTrace {
-    fn write_value<W: Write>(
-        &self,
-        out: &mut vcd::Writer<W>,
-        index: usize,
-        value: u64,
-    ) -> io::Result<()> {
-        let width = self.signals[index].width;
-        if width == 0 {
-            let text = self.texts.get(value as usize).map_or("_", String::as_str);
-            return out.change_string(id_code(index), text);
+    /// Appends wire `index` taking `value` to the body's text, as `vcd::Writer`'s
+    /// `change_scalar`, `change_vector` (every bit, most significant first, so the text reads
+    /// like the number) and `change_string` write it, by hand: through the crate, the
+    /// formatting machinery was most of the trace's cost (a 60-shot radiosity run took 28 %
+    /// more instructions with `--vcd`).
+    fn encode_value(&self, body: &mut Body, index: usize, value: u64) {
+        let (text, id) = (&mut body.text, &body.ids[index]);
+        match self.signals[index].width {
+            0 => {
+                text.push(b's');
+                let value = self.texts.get(value as usize).map_or("_", String::as_str);
+                text.extend_from_slice(value.as_bytes());
+                text.push(b' ');
+            }
+            1 => text.push(b'0' + (value & 1) as u8),
+            width => {
+                text.push(b'b');
+                text.extend(
+                    (0..width)
+                        .rev()
+                        .map(|bit| b'0' + ((value >> bit) & 1) as u8),
+                );
+                text.push(b' ');
+            }
         }
-        write_bits(out, index, width, value)
-    }
-}
-
-fn write_bits<W: Write>(
-    out: &mut vcd::Writer<W>,
-    index: usize,
-    width: u32,
-    value: u64,
-) -> io::Result<()> {
-    let id = id_code(index);
-    if width == 1 {
-        out.change_scalar(id, value & 1 == 1)
-    } else {
-        // Most significant bit first, all `width` bits, so the text reads like the number.
-        let bits = (0..width)
-            .rev()
-            .map(|bit| Value::from((value >> bit) & 1 == 1));
-        out.change_vector(id, bits)
+        text.extend_from_slice(id);
+        text.push(b'\n');
     }
 }
 
@@ -612,5 +684,48 @@ mod tests {
         assert_eq!(mask(0x1ff, 8), 0xff);
         assert_eq!(mask(3, 1), 1);
         assert_eq!(mask(u64::MAX, 64), u64::MAX);
+    }
+
+    /// The radix sort is the standard library's stable sort by (time, wire): on batches shaped
+    /// like a recorder's (changes now and at the ends of spans ahead, a few wires, ties at one
+    /// instant with different values), on wide time spans and wire numbers, and below and above
+    /// the size where it switches.
+    #[test]
+    fn the_radix_sort_is_the_stable_sort() {
+        let mut state = 0x0123_4567_89AB_CDEF_u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for (len, span, wires) in [
+            (10, 100, 3),
+            (63, 1_000, 5),
+            (64, 1_000, 5),
+            (5_000, 3_000, 40),
+            (5_000, u64::MAX / 2, 1 << 20),
+            (20_000, 1 << 30, usize::MAX / 3),
+        ] {
+            let mut now = 1_000u64;
+            let changes: Vec<Change> = (0..len)
+                .map(|i| {
+                    let r = next();
+                    now += r % 4;
+                    let at = if r % 3 == 0 {
+                        now + (r >> 8) % span
+                    } else {
+                        now
+                    };
+                    let wire = (r >> 16) as usize % wires;
+                    (Tick(at.min(u64::MAX - 1)), wire, i as u64)
+                })
+                .collect();
+            let mut expected = changes.clone();
+            expected.sort_by_key(|&(at, index, _)| (at, index));
+            let mut radix = changes;
+            sort_changes(&mut radix, &mut Vec::new());
+            assert_eq!(radix, expected, "{len} changes");
+        }
     }
 }
