@@ -1,5 +1,5 @@
 //! Shared helpers of the integration tests: where the workspace is, a writer to read back
-//! ([`SharedBytes`]), and what the fuzz targets share ([`fuzzing`]: case counts, seeds, inputs
+//! ([`SharedBytes`]), a fixed pseudo-random sequence ([`xorshift`]), and what the fuzz targets share ([`fuzzing`]: case counts, seeds, inputs
 //! mutated from the shipped files). The crates' tests take it as a dev-dependency.
 
 use std::path::PathBuf;
@@ -38,5 +38,18 @@ impl std::io::Write for SharedBytes {
 
     fn flush(&mut self) -> std::io::Result<()> {
         Ok(())
+    }
+}
+
+/// A fixed pseudo-random sequence from `seed` (xorshift64; a nonzero seed): for tests that want
+/// many varied inputs and the same ones every run. Its low bits vary as much as its high ones,
+/// unlike an LCG's, so `next() % k` is fine.
+pub fn xorshift(seed: u64) -> impl FnMut() -> u64 {
+    let mut state = seed;
+    move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
     }
 }

@@ -683,31 +683,29 @@ impl ChromeTrace {
         // Numbers by itoa, not `write!`: the formatting machinery was a third of a traced run's
         // trace work (callgrind), for the same digits.
         let mut n = itoa::Buffer::new();
+        // `,"pid":P,"tid":T,"ts":TS` of an event on a track.
+        let on_track = |w: &mut Vec<u8>, n: &mut itoa::Buffer, track: TrackId| {
+            let t = &self.tracks[track.0];
+            w.extend_from_slice(b",\"pid\":");
+            w.extend_from_slice(n.format(self.processes[t.process].pid).as_bytes());
+            w.extend_from_slice(b",\"tid\":");
+            w.extend_from_slice(n.format(t.tid).as_bytes());
+            w.extend_from_slice(b",\"ts\":");
+            Micros(ts).write_to(w);
+        };
         match kind {
             Kind::Slice { track, dur } if dur > 0 => {
-                let t = &self.tracks[track.0];
                 w.extend_from_slice(b"{\"ph\":\"X\",\"name\":");
                 write_string(w, name)?;
-                w.extend_from_slice(b",\"pid\":");
-                w.extend_from_slice(n.format(self.processes[t.process].pid).as_bytes());
-                w.extend_from_slice(b",\"tid\":");
-                w.extend_from_slice(n.format(t.tid).as_bytes());
-                w.extend_from_slice(b",\"ts\":");
-                Micros(ts).write_to(w);
+                on_track(w, &mut n, track);
                 w.extend_from_slice(b",\"dur\":");
                 Micros(dur).write_to(w);
             }
             // A zero-length slice is an instant: viewers draw a marker, not an invisible box.
             Kind::Instant { track } | Kind::Slice { track, .. } => {
-                let t = &self.tracks[track.0];
                 w.extend_from_slice(b"{\"ph\":\"i\",\"s\":\"t\",\"name\":");
                 write_string(w, name)?;
-                w.extend_from_slice(b",\"pid\":");
-                w.extend_from_slice(n.format(self.processes[t.process].pid).as_bytes());
-                w.extend_from_slice(b",\"tid\":");
-                w.extend_from_slice(n.format(t.tid).as_bytes());
-                w.extend_from_slice(b",\"ts\":");
-                Micros(ts).write_to(w);
+                on_track(w, &mut n, track);
             }
             Kind::Counter { process, value } => {
                 w.extend_from_slice(b"{\"ph\":\"C\",\"name\":");
@@ -722,19 +720,13 @@ impl ChromeTrace {
                 return Ok(());
             }
             Kind::Flow { track, id, step } => {
-                let t = &self.tracks[track.0];
                 w.extend_from_slice(b"{\"ph\":\"");
                 w.extend_from_slice(step.phase().as_bytes());
                 w.extend_from_slice(b"\",\"cat\":\"flow\",\"name\":");
                 write_string(w, name)?;
                 w.extend_from_slice(b",\"id\":");
                 w.extend_from_slice(n.format(id).as_bytes());
-                w.extend_from_slice(b",\"pid\":");
-                w.extend_from_slice(n.format(self.processes[t.process].pid).as_bytes());
-                w.extend_from_slice(b",\"tid\":");
-                w.extend_from_slice(n.format(t.tid).as_bytes());
-                w.extend_from_slice(b",\"ts\":");
-                Micros(ts).write_to(w);
+                on_track(w, &mut n, track);
                 w.extend_from_slice(b",\"bp\":\"e\"}");
                 return Ok(());
             }

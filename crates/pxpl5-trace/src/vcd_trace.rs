@@ -692,13 +692,7 @@ mod tests {
     /// the size where it switches.
     #[test]
     fn the_radix_sort_is_the_stable_sort() {
-        let mut state = 0x0123_4567_89AB_CDEF_u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = pxpl5_tests::xorshift(0x0123_4567_89AB_CDEF);
         for (len, span, wires) in [
             (10, 100, 3),
             (63, 1_000, 5),
@@ -712,7 +706,7 @@ mod tests {
                 .map(|i| {
                     let r = next();
                     now += r % 4;
-                    let at = if r % 3 == 0 {
+                    let at = if r.is_multiple_of(3) {
                         now + (r >> 8) % span
                     } else {
                         now

@@ -769,20 +769,13 @@ fn a_spilling_trace_writes_the_bytes_of_one_held_in_memory() {
         let budget = 4096;
         let mut held = ChromeTrace::new(w);
         let mut spilled = ChromeTrace::new(w).spill_at(std::env::temp_dir(), budget);
-        // xorshift64: any fixed sequence will do.
-        let mut state = 0x0005_EED0_F0DD_0BB5_u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = pxpl5_tests::xorshift(0x0005_EED0_F0DD_0BB5_u64);
         let mut now = 0u64;
         let mut most = 0;
         for i in 0..20_000u64 {
             now += next() % 300;
             let r = next();
-            let start = if r % 7 == 0 { now / 2 } else { now };
+            let start = if r.is_multiple_of(7) { now / 2 } else { now };
             let len = (r >> 8) % 500;
             let name = ["a", "b", "c"][(r >> 20) as usize % 3];
             let track = format!("GP {}", (r >> 24) % 3);

@@ -423,14 +423,7 @@ fn a_streamed_trace_writes_the_bytes_of_one_held_in_memory() {
             .iter()
             .map(|x| (held.text_value(x), streamed.text_value(x)))
             .collect();
-        // xorshift64: any fixed sequence will do.
-        let mut state = 0x0005_EED0_F0DD_0BB5_u64;
-        let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = pxpl5_tests::xorshift(0x0005_EED0_F0DD_0BB5_u64);
         let (mut now, mut most) = (0u64, 0usize);
         for _ in 0..3 * VcdTrace::FLUSH_AT {
             now += next() % 3;
