@@ -12,7 +12,8 @@ use crate::window::TraceWindow;
 /// A trace of tracks, slices, instants, counters and flows in one of the supported formats.
 #[derive(Debug)]
 pub enum EventTrace {
-    /// Chrome trace-event JSON, held in memory and written at the end ([`ChromeTrace::write`]).
+    /// Chrome trace-event JSON, sorted in memory (or on disk past a budget,
+    /// [`ChromeTrace::spill_to`]) and written at the end ([`ChromeTrace::write`]).
     Chrome(ChromeTrace),
     /// Perfetto's protobuf format, streamed to its writer ([`PerfettoTrace::finish`]).
     Perfetto(PerfettoTrace),
