@@ -128,59 +128,63 @@ impl FlowStep {
     }
 }
 
-/// A run of grouped slices merged so far.
-#[derive(Clone, Copy, Debug)]
+/// A run of grouped slices merged so far. Ordered by start, then recording order: the order
+/// runs of one key merge in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 struct Group {
     start: u64,
+    /// The smallest recording sequence number of its members: its place among equal timestamps.
+    seq: u64,
     end: u64,
     count: u64,
     clipped: bool,
-    /// The smallest recording sequence number of its members: its place among equal timestamps.
-    seq: u64,
+}
+
+impl Group {
+    /// Takes in `other`, a run that continues this one.
+    fn absorb(&mut self, other: Group) {
+        self.end = self.end.max(other.end);
+        self.count += other.count;
+        self.clipped |= other.clipped;
+        self.seq = self.seq.min(other.seq);
+    }
 }
 
 /// Identifies the slices that may merge: same track, same name, same `min_gap`.
 type GroupKey = (TrackId, u32, u64);
 
-/// A run of grouped slices no longer the latest of its key, kept for the output's merge in
-/// key, start and recording order (the order runs merge in).
+/// A run of grouped slices with its key, kept for the output's merge in key order, then the
+/// run's own.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
-struct GroupRun {
-    key: GroupKey,
-    start: u64,
-    seq: u64,
-    end: u64,
-    count: u64,
-    clipped: bool,
-}
+struct GroupRun(GroupKey, Group);
 
 impl SortKey for GroupRun {
     const BYTES: usize = 53;
 
     fn put(&self, b: &mut [u8]) {
-        let (TrackId(track), name, min_gap) = self.key;
+        let GroupRun((TrackId(track), name, min_gap), g) = *self;
         b[0..8].copy_from_slice(&(track as u64).to_le_bytes());
         b[8..12].copy_from_slice(&name.to_le_bytes());
-        for (i, v) in [min_gap, self.start, self.seq, self.end, self.count]
+        for (i, v) in [min_gap, g.start, g.seq, g.end, g.count]
             .into_iter()
             .enumerate()
         {
             b[12 + 8 * i..20 + 8 * i].copy_from_slice(&v.to_le_bytes());
         }
-        b[52] = u8::from(self.clipped);
+        b[52] = u8::from(g.clipped);
     }
 
     fn get(b: &[u8]) -> GroupRun {
         let u = |i: usize| u64::from_le_bytes(b[i..i + 8].try_into().expect("8 bytes"));
         let name = u32::from_le_bytes(b[8..12].try_into().expect("4 bytes"));
-        GroupRun {
-            key: (TrackId(u(0) as usize), name, u(12)),
+        let g = Group {
             start: u(20),
             seq: u(28),
             end: u(36),
             count: u(44),
             clipped: b[52] != 0,
-        }
+        };
+        GroupRun((TrackId(u(0) as usize), name, u(12)), g)
     }
 }
 
@@ -453,13 +457,11 @@ impl ChromeTrace {
             Entry::Occupied(o) => o.into_mut(),
         };
         if start >= last.start && start < last.end.saturating_add(min_gap.as_ps()) {
-            last.end = last.end.max(end);
-            last.count += 1;
-            last.clipped |= clipped;
+            last.absorb(run);
             return;
         }
         let done = std::mem::replace(last, run);
-        self.closed.push(GroupRun::of(key, done), &[]);
+        self.closed.push(GroupRun(key, done), &[]);
     }
 
     /// Records an instant event (a thread-scoped marker) at `at` on `track`.
@@ -754,19 +756,19 @@ impl ChromeTrace {
         let mut out = self.lines.like();
         let mut open = ExternalSort::default();
         for (&key, &g) in &self.open {
-            open.push(GroupRun::of(key, g), &[]);
+            open.push(GroupRun(key, g), &[]);
         }
         let mut current: Option<GroupRun> = None;
-        merge(&[&self.closed, &open], |g, _| {
+        merge(&[&self.closed, &open], |run, _| {
+            let GroupRun(key, g) = run;
             match &mut current {
-                Some(last) if last.key == g.key && g.start < last.end.saturating_add(g.key.2) => {
-                    last.end = last.end.max(g.end);
-                    last.count += g.count;
-                    last.clipped |= g.clipped;
-                    last.seq = last.seq.min(g.seq);
+                Some(GroupRun(last_key, last))
+                    if *last_key == key && g.start < last.end.saturating_add(key.2) =>
+                {
+                    last.absorb(g);
                 }
                 _ => {
-                    if let Some(done) = current.replace(g) {
+                    if let Some(done) = current.replace(run) {
                         let key = self.group_line(scratch, done);
                         out.push(key, scratch);
                     }
@@ -782,8 +784,8 @@ impl ChromeTrace {
     }
 
     /// A merged run as a slice, with the args `count` and, if a member was, `clipped`.
-    fn group_line(&self, scratch: &mut Vec<u8>, g: GroupRun) -> LineKey {
-        let (track, name, _) = g.key;
+    fn group_line(&self, scratch: &mut Vec<u8>, GroupRun(key, g): GroupRun) -> LineKey {
+        let (track, name, _) = key;
         let mut args = Args::new();
         args.insert("count".to_owned(), JsonValue::from(g.count));
         if g.clipped {
@@ -850,19 +852,6 @@ impl ChromeTrace {
         self.names.push(name.to_owned());
         self.name_ids.insert(name.to_owned(), id);
         id
-    }
-}
-
-impl GroupRun {
-    fn of(key: GroupKey, g: Group) -> GroupRun {
-        GroupRun {
-            key,
-            start: g.start,
-            seq: g.seq,
-            end: g.end,
-            count: g.count,
-            clipped: g.clipped,
-        }
     }
 }
 
