@@ -129,9 +129,31 @@ impl IntegerEngine {
         combine: LogicOp,
         active: &[u32],
     ) {
-        let gpr = self.geometry.groups_per_row;
+        // The seed's 128-pixel row is two groups: a row buffer whose length the compiler knows is
+        // cleared by two stores and a group's row found by a shift. Through the board's buffer,
+        // each row's clearing was a `memset` call, 8 % of the main job's instructions.
+        if self.geometry.groups_per_row == 2 {
+            self.sign_rows(s, window, (dst, combine), active, &mut [0u64; 2]);
+        } else {
+            let mut row = std::mem::take(&mut self.row_bits);
+            self.sign_rows(s, window, (dst, combine), active, &mut row);
+            self.row_bits = row;
+        }
+    }
+
+    /// [`IntegerEngine::sign_test`] with a row buffer of one u64 per group of a row.
+    #[inline(always)]
+    fn sign_rows(
+        &mut self,
+        s: &Streams,
+        window: Window,
+        (dst, combine): (Bit, LogicOp),
+        active: &[u32],
+        row_bits: &mut impl AsMut<[u64]>,
+    ) {
+        let row_bits = row_bits.as_mut();
+        let gpr = row_bits.len();
         let range = Unwrapped::of(window);
-        let row_bits = &mut self.row_bits;
         // The destination plane, chosen once: a flag's writes are gated by enable.
         let Registers { enable, flags } = &mut self.regs;
         let mut flag = match dst {
@@ -194,7 +216,11 @@ fn set_span(out: &mut [u64], lo: usize, hi: usize) {
         out[g0] |= from & to;
     } else {
         out[g0] |= from;
-        out[g0 + 1..g1].fill(u64::MAX);
+        // Only a row wider than two groups has groups between; a `fill` of none still costs a
+        // `memset` call.
+        if g1 > g0 + 1 {
+            out[g0 + 1..g1].fill(u64::MAX);
+        }
         out[g1] |= to;
     }
 }
@@ -273,6 +299,7 @@ impl Hints {
 }
 
 /// The W >= 0 bits of one row into `out` (one u64 per 64 columns).
+#[inline(always)]
 fn sign_row(
     v: RowFn,
     (window, range): (Window, Unwrapped),
@@ -361,6 +388,7 @@ fn split(diff0: i64, d: i64, last: usize) -> Option<usize> {
 
 /// [`sign_row`] for a row along which V is linear, `f(px) = f(0) + b px`: the end of the span by
 /// one exact integer division.
+#[inline(always)]
 fn linear_sign_row(v: RowFn, window: Window, range: Unwrapped, last: usize, out: &mut [u64]) {
     let (f0, fl) = (v.at(0), v.at(last));
     if !(range.holds(f0) && range.holds(fl)) {
