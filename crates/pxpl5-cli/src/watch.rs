@@ -23,10 +23,10 @@
 use std::io::IsTerminal;
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::mpsc::{self, RecvTimeoutError};
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::{Arc, LazyLock};
 use std::time::{Duration, Instant};
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
 use pxpl5_machine::{Monitor, RunError, RunOptions, Stop};
 use pxpl5_sim::Tick;
 
@@ -53,8 +53,10 @@ const HARD_EXIT: u32 = 3;
 /// Whether runs may show a progress bar: stderr is a terminal and `-q` was not given.
 static PROGRESS: AtomicBool = AtomicBool::new(false);
 
-/// The progress bar on screen, if any: log lines are written around it ([`suspend`]).
-static BAR: Mutex<Option<ProgressBar>> = Mutex::new(None);
+/// The progress bars on screen: one per run under way (`radiosity` runs its methods at once), or
+/// the command's own. Log lines are written around them ([`suspend`]).
+static BARS: LazyLock<MultiProgress> =
+    LazyLock::new(|| MultiProgress::with_draw_target(ProgressDrawTarget::stderr()));
 
 /// Whether each run draws its own bar: a command that runs many at once (`sweep`) draws one bar
 /// of its own instead ([`hide_run_bars`], [`command_bar`]).
@@ -72,21 +74,25 @@ pub fn command_bar(len: u64, prefix: &str, template: &str) -> Option<ProgressBar
     if !PROGRESS.load(Ordering::Relaxed) {
         return None;
     }
-    let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
+    let bar = BARS.add(ProgressBar::new(len));
     if let Ok(style) = ProgressStyle::with_template(template) {
         bar.set_style(style.progress_chars("=> "));
     }
     bar.set_prefix(prefix.to_string());
-    *BAR.lock().unwrap_or_else(PoisonError::into_inner) = Some(bar.clone());
     Some(bar)
 }
 
 /// Take the command's bar off the screen.
 pub fn finish_bar(bar: Option<ProgressBar>) {
     if let Some(bar) = bar {
-        *BAR.lock().unwrap_or_else(PoisonError::into_inner) = None;
-        bar.finish_and_clear();
+        take_off(bar);
     }
+}
+
+/// Take `bar` off the screen and out of [`BARS`].
+fn take_off(bar: ProgressBar) {
+    bar.finish_and_clear();
+    BARS.remove(&bar);
 }
 
 /// Catch Ctrl-C (and SIGTERM, SIGHUP) for the rest of the process: each is counted, the
@@ -114,12 +120,12 @@ pub fn enable_progress(quiet: bool) {
     PROGRESS.store(!quiet && std::io::stderr().is_terminal(), Ordering::Relaxed);
 }
 
-/// Run `f` (a write to stderr) with the progress bar, if one is shown, out of its way.
+/// Run `f` (a write to stderr) with the progress bars, if any are shown, out of its way.
 pub fn suspend<R>(f: impl FnOnce() -> R) -> R {
-    let bar = BAR.lock().unwrap_or_else(PoisonError::into_inner).clone();
-    match bar {
-        Some(bar) => bar.suspend(f),
-        None => f(),
+    if PROGRESS.load(Ordering::Relaxed) {
+        BARS.suspend(f)
+    } else {
+        f()
     }
 }
 
@@ -494,30 +500,25 @@ fn watcher(
         }
     }
     if let Some(bar) = bar {
-        *BAR.lock().unwrap_or_else(PoisonError::into_inner) = None;
-        bar.finish_and_clear();
+        take_off(bar);
     }
     why
 }
 
-/// A progress bar for `sim` on stderr, registered for [`suspend`].
+/// A progress bar for `sim` on stderr, among [`BARS`].
 fn show_bar(sim: &Sim) -> ProgressBar {
     let (bar, template) = match sim.shots {
         Some(n) => (
-            ProgressBar::with_draw_target(Some(n), ProgressDrawTarget::stderr()),
+            ProgressBar::new(n),
             "{prefix}: {pos}/{len} shots [{bar:20}] {wide_msg}",
         ),
-        None => (
-            ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr()),
-            "{prefix}: {spinner} {wide_msg}",
-        ),
+        None => (ProgressBar::no_length(), "{prefix}: {spinner} {wide_msg}"),
     };
     if let Ok(style) = ProgressStyle::with_template(template) {
         bar.set_style(style.progress_chars("=> "));
     }
     bar.set_prefix(sim.name.to_string());
-    *BAR.lock().unwrap_or_else(PoisonError::into_inner) = Some(bar.clone());
-    bar
+    BARS.add(bar)
 }
 
 /// The bar's message: simulated time reached, simulated time per host second, host time (cut
