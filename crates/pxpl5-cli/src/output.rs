@@ -368,6 +368,10 @@ impl Spool {
     /// the temporary file cannot be created.
     pub fn create(dest: &Dest) -> Result<(Spool, fs::File), UserError> {
         static NEXT: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+        // Held until the file is open: spools made at once (radiosity's methods, each on a
+        // thread) would otherwise both find a new directory missing and both create it, and a
+        // spool dropped meanwhile could take away the directory before the file is in it.
+        let mut dirs = spool_dirs();
         let mut created = Vec::new();
         let (tmp, shown) = match dest {
             Dest::Replace(path) => {
@@ -377,7 +381,7 @@ impl Spool {
             Dest::Through(path) => (spool_path(&NEXT), path.clone()),
             Dest::Stdout => (spool_path(&NEXT), PathBuf::from("stdout")),
         };
-        spool_dirs().extend(created);
+        dirs.extend(created);
         let mut spool = Spool {
             dest: dest.clone(),
             tmp,
@@ -396,6 +400,8 @@ impl Spool {
                 }
                 Ok(f)
             });
+        // Released before the spool can be dropped, which takes the list again.
+        drop(dirs);
         match opened {
             Ok(f) => Ok((spool, f)),
             Err(e) => {
