@@ -21,7 +21,7 @@ pub fn set_memory_limit(bytes: u64) {
     let _ = MEMORY_LIMIT.set(bytes);
 }
 
-fn memory_limit() -> u64 {
+pub fn memory_limit() -> u64 {
     MEMORY_LIMIT.get().copied().unwrap_or(memory::DEFAULT_LIMIT)
 }
 

@@ -20,7 +20,7 @@ use pxpl5_geom::DVec3;
 use pxpl5_geom::convex::Corner;
 use pxpl5_geom::polygon::{self, Problem};
 use pxpl5_machine::{Resource, RunOptions, RunStats, Stop};
-use std::rc::Rc;
+use std::sync::Arc;
 
 use pxpl5_radiosity::accuracy::Reference;
 use pxpl5_radiosity::comparison::{Comparison, SEED_RATIO};
@@ -77,6 +77,12 @@ pub struct RadiosityArgs {
     /// workers, and today that costs more than the second core gains (see the README).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=256))]
     pub threads: Option<u32>,
+    /// Run the methods one after the other. By default they run at once, a host thread each,
+    /// when the host has a core for each and the memory limit holds all their machines. Host
+    /// work only: every output is byte-identical either way. In turn, each method's host seconds
+    /// has the host to itself, and a first Ctrl-C ends the method under way and starts no other.
+    #[arg(long)]
+    pub in_turn: bool,
     /// Pixels across the hemisphere's disk and the hemicube's top face, 1 to 4096; the machine
     /// limits it further (a disk larger than a Renderer is cut into tiles of 128 x 128, drawn in
     /// turn, each within the QEE's pixel addresses; a hemicube face must fit one Renderer, and N
@@ -195,7 +201,7 @@ impl RadiosityArgs {
 pub(crate) struct Plan {
     pub shots: usize,
     pub shooters_at_once: usize,
-    pub reference: Option<Rc<Reference>>,
+    pub reference: Option<Arc<Reference>>,
     pub until_error: Option<f64>,
 }
 
@@ -217,7 +223,7 @@ impl Plan {
             Some(e) => (e > 0.0).then_some(e),
             None => Some(DEFAULT_UNTIL_ERROR),
         };
-        let reference = Reference::new(scene, patches).map(Rc::new);
+        let reference = Reference::new(scene, patches).map(Arc::new);
         let until_error = match (until_error, &reference) {
             (Some(_), None) if args.until_error.is_some() => {
                 return Err(UserError(format!(
@@ -368,6 +374,32 @@ pub(crate) fn prepare(
 /// Runs every method, renders the pictures, and only then writes every output, all or nothing
 /// (`output::write_all`), and prints the report: a failure anywhere leaves the output directory
 /// as it was. Every output whose name is known is checked before the first run.
+/// What one method computed: its run, the host seconds it took, and the PNG of its solution's
+/// picture when the scene has a camera.
+struct Computed {
+    run: MethodRun,
+    host: f64,
+    picture: Option<Vec<u8>>,
+}
+
+/// Whether `methods` runs go at once, a host thread each: unless `--in-turn`, when there are
+/// several, the host has a core for each, and the memory limit holds all their machines at
+/// once (it is checked for one machine when the config is loaded).
+fn at_once(args: &RadiosityArgs, cfg: &pxpl5_config::MachineConfig, methods: usize) -> bool {
+    if args.in_turn || methods < 2 {
+        return false;
+    }
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let machines = pxpl5_machine::memory::estimate(cfg)
+        .total()
+        .saturating_mul(methods as u64);
+    let fits = machines <= config_cmd::memory_limit();
+    if cores < methods || !fits {
+        tracing::info!(cores, machines_bytes = machines, "the methods run in turn");
+    }
+    cores >= methods && fits
+}
+
 pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
     let watch = Watch::new(args.host_time_limit.clone());
     let cfg = config_cmd::load(args.config.as_deref())?;
@@ -420,21 +452,84 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
         watch.host_limit(),
     );
 
-    // Compute everything; after a Ctrl-C, no other method starts.
-    let mut runs = Vec::new();
-    let mut host_seconds = Vec::new();
-    for (&method, traces) in methods.iter().zip(&mut traces) {
-        if watch::interrupts() > 0 {
-            break;
-        }
+    let options = options_json(args, &plan, &scene, &cfg);
+    let stamp = format!(
+        "pxpl5 {} radiosity; options {}",
+        env!("CARGO_PKG_VERSION"),
+        options
+    );
+    // One method's run and the picture of its solution.
+    let compute = |method: Method, traces: &mut TraceDests| -> Result<Computed, Failure> {
         let (run, host) = run_method(&watch, &cfg, &patches, args, &plan, method, traces)?;
-        runs.push(run);
-        host_seconds.push(host);
-    }
-    if runs.is_empty() {
+        let picture = match &scene.camera {
+            // Drawn after a first Ctrl-C too, from the shots taken: the polygon program has no
+            // point to stop at early, so only a second Ctrl-C stops it.
+            Some(camera) => {
+                let name = format!("radiosity (picture, {})", method.name());
+                let sim = Sim {
+                    name: &name,
+                    shots: None,
+                    interrupt: Stop::Soon,
+                };
+                let options = RunOptions {
+                    max_time: args.time_limit,
+                    ..RunOptions::default()
+                };
+                let (picture, _) = watch.simulate(
+                    &sim,
+                    options,
+                    |options| {
+                        picture::render(&cfg, &patches, &run.solution, camera.clone(), options)
+                    },
+                    |r| r.stats.end,
+                )?;
+                Some(png_bytes(&picture.frame, Some(&stamp))?)
+            }
+            None => None,
+        };
+        Ok(Computed { run, host, picture })
+    };
+    let computed = if at_once(args, &cfg, methods.len()) {
+        // Each method on a host thread of its own: the runs share nothing, so the results are
+        // those of runs in turn. The first failure in method order is the one reported.
+        let span = tracing::Span::current();
+        std::thread::scope(|scope| {
+            let runs: Vec<_> = methods
+                .iter()
+                .zip(&mut traces)
+                .map(|(&method, traces)| {
+                    let (span, compute) = (span.clone(), &compute);
+                    scope.spawn(move || span.in_scope(|| compute(method, traces)))
+                })
+                .collect();
+            runs.into_iter()
+                .map(|run| {
+                    run.join()
+                        .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+                })
+                .collect::<Result<Vec<_>, _>>()
+        })?
+    } else {
+        // In turn; after a Ctrl-C, no other method starts.
+        let mut computed = Vec::new();
+        for (&method, traces) in methods.iter().zip(&mut traces) {
+            if watch::interrupts() > 0 {
+                break;
+            }
+            computed.push(compute(method, traces)?);
+        }
+        computed
+    };
+    if computed.is_empty() {
         return Err(Failure::Interrupted(
             "radiosity: interrupted before the first shot; nothing written".into(),
         ));
+    }
+    let (mut runs, mut host_seconds, mut pictures) = (Vec::new(), Vec::new(), Vec::new());
+    for c in computed {
+        runs.push(c.run);
+        host_seconds.push(c.host);
+        pictures.push(c.picture);
     }
     // Whether the results fall short of those asked: a run stopped between shots, or a method
     // not run. An interrupt after the last shot leaves them complete.
@@ -446,12 +541,6 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
         (args.resolution, plan.shooters_at_once),
         &runs,
     );
-    let options = options_json(args, &plan, &scene, &cfg);
-    let stamp = format!(
-        "pxpl5 {} radiosity; options {}",
-        env!("CARGO_PKG_VERSION"),
-        options
-    );
     let mut contents = vec![
         format!("# {stamp}\n{}", comparison_csv(&comparison)).into_bytes(),
         (serde_json::to_string_pretty(&comparison_json(&comparison, &options, partial))
@@ -460,7 +549,7 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
             .into_bytes(),
         pxpl5_config::show(&cfg).into_bytes(),
     ];
-    for run in &runs {
+    for (run, picture) in runs.iter().zip(pictures) {
         let mut pcsv = format!("# {stamp}\npatch,surface,area,r,g,b\n");
         for (i, (p, b)) in patches.iter().zip(&run.solution.radiosity).enumerate() {
             pcsv += &format!(
@@ -480,27 +569,7 @@ pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
             }
             contents.push(ccsv.into_bytes());
         }
-        if let Some(camera) = &scene.camera {
-            // Drawn after a first Ctrl-C too, from the shots taken: the polygon program has no
-            // point to stop at early, so only a second Ctrl-C stops it.
-            let name = format!("radiosity (picture, {})", run.method.name());
-            let sim = Sim {
-                name: &name,
-                shots: None,
-                interrupt: Stop::Soon,
-            };
-            let options = RunOptions {
-                max_time: args.time_limit,
-                ..RunOptions::default()
-            };
-            let (picture, _) = watch.simulate(
-                &sim,
-                options,
-                |options| picture::render(&cfg, &patches, &run.solution, camera.clone(), options),
-                |r| r.stats.end,
-            )?;
-            contents.push(png_bytes(&picture.frame, Some(&stamp))?);
-        }
+        contents.extend(picture);
     }
 
     // Then write it all (the files of methods a Ctrl-C skipped are not among them).

@@ -453,6 +453,36 @@ fn radiosity_compares_both_methods_with_the_seed() {
         assert_eq!(last[1], 8.0, "{curve}");
         assert!(last[3] < first[3], "{curve}");
     }
+
+    // The methods ran at once (the host has the cores; 2 on CI): in turn, every file and the
+    // report are the same, byte for byte, but for the host seconds.
+    let turn_d = out_dir("radiosity-in-turn");
+    let turn = pxpl5(&[
+        "radiosity",
+        "--shots",
+        "8",
+        "--patch-size",
+        "200",
+        "--in-turn",
+        "--out",
+        turn_d.to_str().unwrap(),
+    ]);
+    assert!(turn.status.success(), "{}", text(&turn.stderr));
+    let (at_once, in_turn) = (listing(&out_d), listing(&turn_d));
+    let names = |l: &[(String, Vec<u8>)]| l.iter().map(|f| f.0.clone()).collect::<Vec<_>>();
+    assert_eq!(names(&at_once), names(&in_turn));
+    assert_eq!(at_once.len(), 9, "{:?}", names(&at_once));
+    for (a, b) in at_once.iter().zip(&in_turn) {
+        assert!(a.1 == b.1, "{} differs in turn", a.0);
+    }
+    let report = |out: &Output, d: &Path| -> String {
+        text(&out.stdout)
+            .lines()
+            .filter(|l| !l.trim_start().starts_with("host seconds"))
+            .map(|l| l.replace(d.to_str().unwrap(), "OUT") + "\n")
+            .collect()
+    };
+    assert_eq!(report(&out, &out_d), report(&turn, &turn_d));
 }
 
 #[test]
@@ -1590,9 +1620,10 @@ fn interrupt(
 #[test]
 fn ctrl_c_ends_radiosity_between_shots_and_writes_what_it_computed_marked_partial() {
     let d = out_dir("interrupted-radiosity");
-    // Both methods asked, 100,000 shots each: many minutes, unless interrupted.
+    // Both methods asked, in turn, 100,000 shots each: many minutes, unless interrupted.
     let (mut child, lines) = spawn_logged(&[
         "radiosity",
+        "--in-turn",
         "--shots",
         "100000",
         "--threshold",
@@ -1668,6 +1699,62 @@ fn ctrl_c_ends_radiosity_between_shots_and_writes_what_it_computed_marked_partia
     reader.next_frame(&mut pixels).expect("every row");
     let check = pxpl5(&["config", "check", d.join("config.ron").to_str().unwrap()]);
     assert!(check.status.success(), "{}", text(&check.stderr));
+}
+
+/// Methods run at once (the default on a host with the cores): a first Ctrl-C ends each between
+/// shots, and both are written, marked partial.
+#[test]
+fn ctrl_c_ends_methods_run_at_once_between_shots() {
+    let d = out_dir("interrupted-radiosity-at-once");
+    let (mut child, lines) = spawn_logged(&[
+        "radiosity",
+        "--shots",
+        "100000",
+        "--threshold",
+        "0",
+        "--until-error",
+        "0",
+        "--resolution",
+        "16",
+        "--out",
+        d.to_str().unwrap(),
+    ]);
+    wait_for_line(&mut child, &lines, " of 100000 shots done");
+    let (code, _, stderr) = interrupt(child, lines);
+    assert_eq!(code, Some(130), "{stderr}");
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("comparison.json")).unwrap()).unwrap();
+    assert_eq!(json["partial"], true);
+    let methods = json["methods"].as_array().unwrap();
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    if cores < 2 {
+        // One core: in turn, and the first Ctrl-C starts no other method.
+        assert_eq!(methods.len(), 1, "{json}");
+        return;
+    }
+    let done: Vec<String> = methods
+        .iter()
+        .map(|m| {
+            assert_eq!(m["partial"], true, "{m}");
+            let shots = m["shots"].as_u64().unwrap();
+            assert!(shots < 100_000, "{m}");
+            format!("{} {shots} of 100000 shots", m["method"].as_str().unwrap())
+        })
+        .collect();
+    assert_eq!(done.len(), 2, "{json}");
+    assert!(done[0].starts_with("hemisphere ") && done[1].starts_with("hemicube "));
+    assert!(
+        stderr.ends_with(&format!(
+            "radiosity: interrupted after {}; wrote what was computed to {}, marked partial",
+            done.join(", "),
+            d.display()
+        )),
+        "{stderr}"
+    );
+    for m in ["hemisphere", "hemicube"] {
+        let pcsv = std::fs::read_to_string(d.join(format!("patches-{m}.csv"))).unwrap();
+        assert!(pcsv.ends_with('\n'), "{m}");
+    }
 }
 
 #[test]

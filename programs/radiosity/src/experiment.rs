@@ -10,6 +10,7 @@
 use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::rc::Rc;
+use std::sync::Arc;
 
 use pxpl5_config::MachineConfig;
 use pxpl5_geom::DVec3;
@@ -39,7 +40,7 @@ pub struct Settings {
     pub run: RunOptions,
     /// The scene's reference solution: with it, the run's accuracy is measured batch by batch
     /// ([`MethodRun::convergence`]).
-    pub reference: Option<Rc<Reference>>,
+    pub reference: Option<Arc<Reference>>,
     /// Stop once every surface is within this relative error of the reference (needs one).
     pub target_error: Option<f64>,
 }

@@ -98,7 +98,7 @@ fn both_methods_converge_to_the_reference_within_one_percent() {
     let cfg = pxpl5_config::default_config();
     let scene = scenes::cornell_empty();
     let patches = mesh(&scene, 200.0).expect("meshes");
-    let reference = std::rc::Rc::new(Reference::new(&scene, &patches).expect("unoccluded"));
+    let reference = std::sync::Arc::new(Reference::new(&scene, &patches).expect("unoccluded"));
     let mut runs = Vec::new();
     for method in [Method::Hemisphere, Method::Hemicube] {
         let settings = Settings {
