@@ -371,9 +371,6 @@ pub(crate) fn prepare(
     })
 }
 
-/// Runs every method, renders the pictures, and only then writes every output, all or nothing
-/// (`output::write_all`), and prints the report: a failure anywhere leaves the output directory
-/// as it was. Every output whose name is known is checked before the first run.
 /// What one method computed: its run, the host seconds it took, and the PNG of its solution's
 /// picture when the scene has a camera.
 struct Computed {
@@ -400,6 +397,10 @@ fn at_once(args: &RadiosityArgs, cfg: &pxpl5_config::MachineConfig, methods: usi
     cores >= methods && fits
 }
 
+/// Runs every method (at once, a host thread each, or in turn: `at_once`), renders the
+/// pictures, and only then writes every output, all or nothing (`output::write_all`), and prints
+/// the report: a failure anywhere leaves the output directory as it was. Every output whose
+/// name is known is checked before the first run.
 pub fn radiosity(args: &RadiosityArgs) -> Result<(), Failure> {
     let watch = Watch::new(args.host_time_limit.clone());
     let cfg = config_cmd::load(args.config.as_deref())?;

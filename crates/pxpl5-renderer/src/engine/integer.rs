@@ -239,7 +239,8 @@ fn sign_pixels(v: RowFn, window: Window, lo: usize, hi: usize, out: &mut [u64]) 
 
 /// The first px in `lo ..= hi` where `pred` holds, `hi + 1` if none, for a `pred` that is false
 /// and then true on the range. Gallops from `guess` (any estimate; clamped), so a guess off by
-/// `d` costs about 2 log2(d) + 2 evaluations.
+/// `d` costs about 2 log2(d) + 2 evaluations (2.9 on average on the hemisphere stream). Always
+/// inlined: as a call per monotone piece (1.2 M on that stream) it cost 14 % more instructions.
 #[inline(always)]
 fn first_true(lo: usize, hi: usize, guess: usize, pred: impl Fn(usize) -> bool) -> usize {
     let g = guess.clamp(lo, hi);
