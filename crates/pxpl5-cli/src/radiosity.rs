@@ -191,7 +191,7 @@ impl RadiosityArgs {
                 ring_level: self.ring_level.into(),
                 max_time: self.time_limit,
                 monitor: None,
-                threads: crate::run::host_threads(self.threads),
+                threads: crate::run::host_threads(self.threads, 1),
             },
         }
     }
@@ -386,7 +386,7 @@ fn at_once(args: &RadiosityArgs, cfg: &pxpl5_config::MachineConfig, methods: usi
     if args.in_turn || methods < 2 {
         return false;
     }
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let cores = crate::run::available_cores();
     let machines = pxpl5_machine::memory::estimate(cfg)
         .total()
         .saturating_mul(methods as u64);

@@ -34,9 +34,10 @@ pub struct RunArgs {
     /// Machine config (RON); default: the embedded seed machine.
     #[arg(long)]
     pub config: Option<PathBuf>,
-    /// Host threads for the Renderers' pixel work (1: all in one thread). Host work only: every
-    /// output is byte-identical whatever the number. Default 1: each readback waits for the
-    /// workers, and today that costs more than the second core gains (see the README).
+    /// Host threads for the Renderers' pixel work (1: all in one thread; never more than the
+    /// machine's boards). Host work only: every output is byte-identical whatever the number.
+    /// Default: the host's cores (the polygon program reads back only its frame, so the boards
+    /// run ahead of the machine; see the README).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=256))]
     pub threads: Option<u32>,
     /// The program to run.
@@ -119,7 +120,7 @@ pub fn run(args: &RunArgs) -> Result<(), Failure> {
         ring_level: args.ring_level.into(),
         max_time: args.time_limit,
         monitor: None,
-        threads: host_threads(args.threads),
+        threads: host_threads(args.threads, available_cores()),
     };
     watch::estimate(
         &Estimate {
@@ -183,11 +184,18 @@ pub fn machine_units(cfg: &MachineConfig) -> u64 {
     u64::from(cfg.gp.count) + u64::from(cfg.renderer.count)
 }
 
-/// `--threads`: the number asked for, or 1. Not the available cores: measured on this 2-core
-/// machine, 2 threads made the main job slower (hemisphere 4.0 -> 4.7 s, hemicube 4.9 -> 8.9 s
-/// wall), every readback being a wait for the workers.
-pub fn host_threads(asked: Option<u32>) -> usize {
-    asked.map_or(1, |n| n as usize)
+/// `--threads`: the number asked for, or `default`. Measured on this 2-core machine (wall time,
+/// 1 thread then 2): `run --triangles 10000` 2.09 -> 1.31 s on `pxpl5-1989.ron`, 1.59 -> 1.29 s
+/// on the seed machine, so `run` takes the cores; a radiosity method 1.95 -> 1.92 s (hemisphere,
+/// 200 shots) and 2.17 -> 2.71 s (hemicube), every readback a wait for the workers, so each
+/// method takes 1 (and the methods run at once instead).
+pub fn host_threads(asked: Option<u32>, default: usize) -> usize {
+    asked.map_or(default, |n| n as usize)
+}
+
+/// The host's cores, as the standard library sees them (1 if it cannot tell).
+pub fn available_cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
 }
 
 /// The trace options every simulating subcommand takes.

@@ -991,10 +991,7 @@ pub fn sweep(cmd: &SweepCommand) -> Result<(), Failure> {
 
 /// `--workers`, or the cores available.
 pub fn workers(given: Option<u32>) -> usize {
-    given.map_or_else(
-        || std::thread::available_parallelism().map_or(1, |n| n.get()),
-        |n| n as usize,
-    )
+    given.map_or_else(crate::run::available_cores, |n| n as usize)
 }
 
 /// Why a study's run stopped before its points were done, if it did.

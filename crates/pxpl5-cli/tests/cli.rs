@@ -287,6 +287,36 @@ fn run_writes_outputs_and_is_deterministic() {
     assert_eq!(&png[1..4], b"PNG");
 }
 
+/// `run`'s Renderers on host threads (by default as many as the host has cores): the seed
+/// machine's four boards on 1, 2 and 8 threads and by default give the same bytes, traces too.
+#[test]
+fn run_outputs_are_the_same_on_any_number_of_host_threads() {
+    let files = ["stats.json", "frame.png", "t.json", "t.vcd"];
+    let outputs = |threads: Option<&str>| -> Vec<Vec<u8>> {
+        let d = out_dir(&format!("run-threads-{}", threads.unwrap_or("default")));
+        let (trace, vcd) = (d.join("t.json"), d.join("t.vcd"));
+        let mut args = vec!["run", "--triangles", "300", "--out", d.to_str().unwrap()];
+        args.extend(["--trace", trace.to_str().unwrap()]);
+        args.extend(["--vcd", vcd.to_str().unwrap()]);
+        if let Some(n) = threads {
+            args.extend(["--threads", n]);
+        }
+        let out = pxpl5(&args);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        files
+            .iter()
+            .map(|f| std::fs::read(d.join(f)).unwrap())
+            .collect()
+    };
+    let one = outputs(Some("1"));
+    for threads in [Some("2"), Some("8"), None] {
+        let other = outputs(threads);
+        for ((f, a), b) in files.iter().zip(&one).zip(&other) {
+            assert!(a == b, "{f} differs on {threads:?} threads");
+        }
+    }
+}
+
 #[test]
 fn fidelity_word_is_a_hidden_alias_of_integer() {
     let run = |fidelity: &str, d: &std::path::Path| {
