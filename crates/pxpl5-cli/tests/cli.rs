@@ -1647,27 +1647,24 @@ fn interrupt(
     (status.code(), stdout, stderr.join("\n"))
 }
 
+/// `radiosity` with `extra` options and both methods, 100,000 shots each (many minutes), into
+/// `d`, interrupted once a shot is done (the handler is in place and the run well under way):
+/// its exit code, stdout and stderr.
+fn interrupted_radiosity(d: &Path, extra: &[&str]) -> (Option<i32>, String, String) {
+    let mut args = vec!["radiosity", "--shots", "100000", "--threshold", "0"];
+    args.extend(["--until-error", "0", "--resolution", "16"]);
+    args.extend(["--out", d.to_str().unwrap()]);
+    args.extend_from_slice(extra);
+    let (mut child, lines) = spawn_logged(&args);
+    wait_for_line(&mut child, &lines, " of 100000 shots done");
+    interrupt(child, lines)
+}
+
 #[test]
 fn ctrl_c_ends_radiosity_between_shots_and_writes_what_it_computed_marked_partial() {
     let d = out_dir("interrupted-radiosity");
-    // Both methods asked, in turn, 100,000 shots each: many minutes, unless interrupted.
-    let (mut child, lines) = spawn_logged(&[
-        "radiosity",
-        "--in-turn",
-        "--shots",
-        "100000",
-        "--threshold",
-        "0",
-        "--until-error",
-        "0",
-        "--resolution",
-        "16",
-        "--out",
-        d.to_str().unwrap(),
-    ]);
-    // A shot done: the handler is in place and the run well under way.
-    wait_for_line(&mut child, &lines, " of 100000 shots done");
-    let (code, stdout, stderr) = interrupt(child, lines);
+    // The methods in turn: the hemicube is never started.
+    let (code, stdout, stderr) = interrupted_radiosity(&d, &["--in-turn"]);
     no_panic(&Output {
         status: std::process::ExitStatus::default(),
         stdout: Vec::new(),
@@ -1736,21 +1733,7 @@ fn ctrl_c_ends_radiosity_between_shots_and_writes_what_it_computed_marked_partia
 #[test]
 fn ctrl_c_ends_methods_run_at_once_between_shots() {
     let d = out_dir("interrupted-radiosity-at-once");
-    let (mut child, lines) = spawn_logged(&[
-        "radiosity",
-        "--shots",
-        "100000",
-        "--threshold",
-        "0",
-        "--until-error",
-        "0",
-        "--resolution",
-        "16",
-        "--out",
-        d.to_str().unwrap(),
-    ]);
-    wait_for_line(&mut child, &lines, " of 100000 shots done");
-    let (code, _, stderr) = interrupt(child, lines);
+    let (code, _, stderr) = interrupted_radiosity(&d, &[]);
     assert_eq!(code, Some(130), "{stderr}");
     let json: serde_json::Value =
         serde_json::from_slice(&std::fs::read(d.join("comparison.json")).unwrap()).unwrap();
