@@ -132,18 +132,28 @@ impl IntegerEngine {
         // The seed's 128-pixel row is two groups: a row buffer whose length the compiler knows is
         // cleared by two stores and a group's row found by a shift. Through the board's buffer,
         // each row's clearing was a `memset` call, 8 % of the main job's instructions.
-        if self.geometry.groups_per_row == 2 {
-            self.sign_rows(s, window, (dst, combine), active, &mut [0u64; 2]);
-        } else {
-            let mut row = std::mem::take(&mut self.row_bits);
-            self.sign_rows(s, window, (dst, combine), active, &mut row);
-            self.row_bits = row;
+        // A window that holds every value the expression takes on the board (as programs choose
+        // them, `QeeExpr::sign_window`) needs no check, row by row, that it does not wrap.
+        let g = self.geometry;
+        let origin = (s.origin_x as u32, s.origin_y as u32);
+        let bound = s.expr.bound(origin, g.width as u32, g.height as u32);
+        let checks = bound > Unwrapped::of(window).max as u128;
+        let cmd = (dst, combine);
+        match (g.groups_per_row, checks) {
+            (2, false) => self.sign_rows::<false>(s, window, cmd, active, &mut [0u64; 2]),
+            (2, true) => self.sign_rows::<true>(s, window, cmd, active, &mut [0u64; 2]),
+            _ => {
+                let mut row = std::mem::take(&mut self.row_bits);
+                self.sign_rows::<true>(s, window, cmd, active, &mut row);
+                self.row_bits = row;
+            }
         }
     }
 
-    /// [`IntegerEngine::sign_test`] with a row buffer of one u64 per group of a row.
+    /// [`IntegerEngine::sign_test`] with a row buffer of one u64 per group of a row; `CHECKS`:
+    /// whether a row's values may lie outside the window's unwrapped range.
     #[inline(always)]
-    fn sign_rows(
+    fn sign_rows<const CHECKS: bool>(
         &mut self,
         s: &Streams,
         window: Window,
@@ -170,7 +180,7 @@ impl IntegerEngine {
             if g >= row_end {
                 let py = g / gpr;
                 (row_start, row_end) = (py * gpr, py * gpr + gpr);
-                sign_row(s.row_fn(py), (window, range), width, row_bits, &mut hints);
+                sign_row::<CHECKS>(s.row_fn(py), (window, range), width, row_bits, &mut hints);
             }
             let v = row_bits[g - row_start];
             match &mut flag {
@@ -302,7 +312,7 @@ impl Hints {
 
 /// The W >= 0 bits of one row into `out` (one u64 per 64 columns).
 #[inline(always)]
-fn sign_row(
+fn sign_row<const CHECKS: bool>(
     v: RowFn,
     (window, range): (Window, Unwrapped),
     width: usize,
@@ -312,7 +322,7 @@ fn sign_row(
     out.fill(0);
     let last = width - 1;
     if v.d == 0 {
-        return linear_sign_row(v, window, range, last, out);
+        return linear_sign_row::<CHECKS>(v, window, range, last, out);
     }
     // f(px + 1) - f(px) = D (2x + 1) + b: linear in px, so f is monotone on [0, k] and [k, last]
     // where k is the first px at which the difference changes sign class.
@@ -332,7 +342,7 @@ fn sign_row(
     let fk = if k < last { v.at(k) } else { fl };
     // A monotone piece holds its values between those at its ends, so the row's window cannot
     // wrap when it holds these three; otherwise every pixel is evaluated.
-    if !(range.holds(f0) && range.holds(fk) && range.holds(fl)) {
+    if CHECKS && !(range.holds(f0) && range.holds(fk) && range.holds(fl)) {
         return sign_pixels(v, window, 0, last, out);
     }
     let [first, second] = &mut hints.first;
@@ -391,9 +401,15 @@ fn split(diff0: i64, d: i64, last: usize) -> Option<usize> {
 /// [`sign_row`] for a row along which V is linear, `f(px) = f(0) + b px`: the end of the span by
 /// one exact integer division.
 #[inline(always)]
-fn linear_sign_row(v: RowFn, window: Window, range: Unwrapped, last: usize, out: &mut [u64]) {
+fn linear_sign_row<const CHECKS: bool>(
+    v: RowFn,
+    window: Window,
+    range: Unwrapped,
+    last: usize,
+    out: &mut [u64],
+) {
     let (f0, fl) = (v.at(0), v.at(last));
-    if !(range.holds(f0) && range.holds(fl)) {
+    if CHECKS && !(range.holds(f0) && range.holds(fl)) {
         return sign_pixels(v, window, 0, last, out);
     }
     match (f0 >= 0, fl >= 0) {
