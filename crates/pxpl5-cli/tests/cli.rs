@@ -399,16 +399,15 @@ fn run_rejects_bad_input_without_writing() {
 
 #[test]
 fn radiosity_compares_both_methods_with_the_seed() {
+    // 8 shots of 200 mm patches into `d`, with `extra` options.
+    let radiosity = |d: &Path, extra: &[&str]| {
+        let mut args = vec!["radiosity", "--shots", "8", "--patch-size", "200"];
+        args.extend(["--out", d.to_str().unwrap()]);
+        args.extend_from_slice(extra);
+        pxpl5(&args)
+    };
     let out_d = out_dir("radiosity");
-    let out = pxpl5(&[
-        "radiosity",
-        "--shots",
-        "8",
-        "--patch-size",
-        "200",
-        "--out",
-        out_d.to_str().unwrap(),
-    ]);
+    let out = radiosity(&out_d, &[]);
     assert!(out.status.success(), "{}", text(&out.stderr));
     let stdout = text(&out.stdout);
     for wanted in [
@@ -487,16 +486,7 @@ fn radiosity_compares_both_methods_with_the_seed() {
     // The methods ran at once (the host has the cores; 2 on CI): in turn, every file and the
     // report are the same, byte for byte, but for the host seconds.
     let turn_d = out_dir("radiosity-in-turn");
-    let turn = pxpl5(&[
-        "radiosity",
-        "--shots",
-        "8",
-        "--patch-size",
-        "200",
-        "--in-turn",
-        "--out",
-        turn_d.to_str().unwrap(),
-    ]);
+    let turn = radiosity(&turn_d, &["--in-turn"]);
     assert!(turn.status.success(), "{}", text(&turn.stderr));
     let (at_once, in_turn) = (listing(&out_d), listing(&turn_d));
     let names = |l: &[(String, Vec<u8>)]| l.iter().map(|f| f.0.clone()).collect::<Vec<_>>();
