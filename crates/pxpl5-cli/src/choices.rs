@@ -18,6 +18,7 @@ pub enum FidelityArg {
     // `word`, the level's name until it was renamed, stays a hidden alias for existing scripts.
     #[value(alias = "word")]
     Integer,
+    Sparse,
     Timing,
 }
 
@@ -26,6 +27,7 @@ impl From<FidelityArg> for Fidelity {
         match f {
             FidelityArg::Bit => Fidelity::Bit,
             FidelityArg::Integer => Fidelity::Integer,
+            FidelityArg::Sparse => Fidelity::Sparse,
             FidelityArg::Timing => Fidelity::Timing,
         }
     }
@@ -54,6 +56,7 @@ pub enum BenchFidelity {
     Bit,
     #[value(alias = "word")]
     Integer,
+    Sparse,
     All,
 }
 
@@ -63,7 +66,8 @@ impl BenchFidelity {
         match self {
             BenchFidelity::Bit => vec![Fidelity::Bit],
             BenchFidelity::Integer => vec![Fidelity::Integer],
-            BenchFidelity::All => vec![Fidelity::Bit, Fidelity::Integer],
+            BenchFidelity::Sparse => vec![Fidelity::Sparse],
+            BenchFidelity::All => vec![Fidelity::Bit, Fidelity::Integer, Fidelity::Sparse],
         }
     }
 }

@@ -20,6 +20,7 @@ use crate::command::{Bit, Command, Field, Rect};
 use crate::cycles::{backing_store_blocks, backing_store_cycles, cycle_cost};
 use crate::engine::bit::BitEngine;
 use crate::engine::integer::IntegerEngine;
+use crate::engine::sparse::SparseEngine;
 use crate::engine::{Geometry, PixelEngine, QeeSink, Registers};
 use crate::qee::{COEFFICIENT_NAMES, Streams};
 use crate::readback::{ReadbackMessage, pack_messages};
@@ -33,6 +34,9 @@ pub enum Fidelity {
     Bit,
     /// Per-pixel integer arithmetic with the same semantics.
     Integer,
+    /// The integer level with the one-bit registers kept symbolically until something reads
+    /// them (`engine::sparse`): what a scene does not require is not simulated. Same results.
+    Sparse,
     /// No pixel work at all: every command costs its cycles and changes nothing, and a readback
     /// carries zeros in messages of the right size. Approximate: a program whose control flow
     /// depends on pixel values (item buffers) must get them elsewhere, and its timing may then
@@ -45,6 +49,7 @@ impl Fidelity {
         match self {
             Fidelity::Bit => "bit",
             Fidelity::Integer => "integer",
+            Fidelity::Sparse => "sparse",
             Fidelity::Timing => "timing",
         }
     }
@@ -61,9 +66,10 @@ impl std::str::FromStr for Fidelity {
         match s {
             "bit" => Ok(Fidelity::Bit),
             "integer" => Ok(Fidelity::Integer),
+            "sparse" => Ok(Fidelity::Sparse),
             "timing" => Ok(Fidelity::Timing),
             _ => Err(format!(
-                "unknown fidelity `{s}` (expected bit, integer or timing)"
+                "unknown fidelity `{s}` (expected bit, integer, sparse or timing)"
             )),
         }
     }
@@ -203,6 +209,7 @@ struct Transfer {
 enum Engine {
     Bit(BitEngine),
     Integer(IntegerEngine),
+    Sparse(SparseEngine),
 }
 
 impl Engine {
@@ -210,12 +217,14 @@ impl Engine {
         match self {
             Engine::Bit(e) => e,
             Engine::Integer(e) => e,
+            Engine::Sparse(e) => e,
         }
     }
     fn get_mut(&mut self) -> &mut dyn PixelEngine {
         match self {
             Engine::Bit(e) => e,
             Engine::Integer(e) => e,
+            Engine::Sparse(e) => e,
         }
     }
 }
@@ -330,6 +339,9 @@ impl Board {
             Fidelity::Bit => Engine::Bit(BitEngine::new(geometry, cfg.pixel_memory_bits, flags)),
             Fidelity::Integer => {
                 Engine::Integer(IntegerEngine::new(geometry, cfg.pixel_memory_bits, flags))
+            }
+            Fidelity::Sparse => {
+                Engine::Sparse(SparseEngine::new(geometry, cfg.pixel_memory_bits, flags))
             }
             Fidelity::Timing => {
                 let blank = Blank {
@@ -680,6 +692,20 @@ impl Board {
 impl Pixels {
     /// The pixel (or board-state) effect of a validated command, and the messages of a readback.
     pub(crate) fn apply(&mut self, cmd: &Command) -> Option<ReadbackStream> {
+        // The sparse level defers what it can and materialises what the rest reads; a changed
+        // enable makes the list of enabled groups stale.
+        if let Engine::Sparse(e) = &mut self.engine {
+            let deferred = e.defer(cmd, self.origin);
+            if !deferred {
+                e.prepare(cmd);
+            }
+            if e.take_enable_materialised() || (deferred && cmd.writes_enable()) {
+                self.enabled_valid = false;
+            }
+            if deferred {
+                return None;
+            }
+        }
         // The groups the command can change, listed only for the commands that need them (a Logic
         // or SetOrigin command, half a hemisphere stream, needs none): `None` for a gated write
         // (any enabled pixel), else how it combines into a one-bit register.
@@ -713,7 +739,7 @@ impl Pixels {
             let g = self.geometry;
             match self.engine {
                 Engine::Bit(_) => self.streams.fill(expr, self.origin, g.width, g.height),
-                Engine::Integer(_) => self.streams.set_expr(expr, self.origin),
+                Engine::Integer(_) | Engine::Sparse(_) => self.streams.set_expr(expr, self.origin),
             }
         }
         let active = if every_group {
@@ -828,6 +854,15 @@ impl Pixels {
         None
     }
 
+    /// The one-bit registers as the commands so far left them (the sparse level computes what
+    /// it has deferred, leaving it deferred).
+    fn registers(&self) -> std::borrow::Cow<'_, Registers> {
+        match &self.engine {
+            Engine::Sparse(e) => std::borrow::Cow::Owned(e.materialised()),
+            e => std::borrow::Cow::Borrowed(e.get().registers()),
+        }
+    }
+
     /// The board's state in the canonical form both fidelity levels share.
     pub(crate) fn image(&self) -> BoardImage {
         let e = self.engine.get();
@@ -848,9 +883,10 @@ impl Pixels {
             }));
             offset += bits;
         }
+        let Registers { enable, flags } = self.registers().into_owned();
         BoardImage {
-            enable: e.registers().enable.clone(),
-            flags: e.registers().flags.clone(),
+            enable,
+            flags,
             memory: planes,
             backing_store: self.backing_store.clone(),
         }
@@ -869,7 +905,7 @@ impl Pixels {
 
     /// One one-bit register of every pixel, row by row.
     pub(crate) fn bit_values(&self, b: Bit) -> Vec<bool> {
-        let regs = self.engine.get().registers();
+        let regs = self.registers();
         (0..self.geometry.groups * 64)
             .map(|p| (regs.get(b, p / 64) >> (p % 64)) & 1 != 0)
             .collect()

@@ -259,6 +259,20 @@ impl Streams {
             .extend((0..height as i64).map(|py| expr.e * (oy + py)));
     }
 
+    /// Streams that answer only [`Streams::row_fn`] (as after [`Streams::set_expr`]), allocating
+    /// nothing: what the `sparse` level keeps of each sign test it defers.
+    pub fn for_rows(expr: &QeeExpr, origin: (u32, u32)) -> Streams {
+        Streams {
+            col: Vec::new(),
+            row: Vec::new(),
+            e_row: Vec::new(),
+            origin_x: i64::from(origin.0),
+            cross: expr.e != 0,
+            expr: *expr,
+            origin_y: i64::from(origin.1),
+        }
+    }
+
     /// Only what [`Streams::row_fn`] reads, the expression and the origin, with the three
     /// streams left empty: the `integer` level evaluates rows as quadratics and never reads the
     /// streams, so it does not pay for them.

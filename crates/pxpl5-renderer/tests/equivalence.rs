@@ -1,4 +1,4 @@
-//! Property tests: the `bit` and `integer` fidelity levels agree exactly (every command's outcome
+//! Property tests: the `bit`, `integer` and `sparse` fidelity levels agree exactly (every command's outcome
 //! and timing, pixel memory, enable, flags, backing store) over random command streams,
 //! coefficients, windows, origins and enable masks. Errors must agree too: a command one level
 //! rejects, the other rejects the same way.
@@ -157,21 +157,116 @@ fn small() -> RendererConfig {
 fn run_both(cfg: &RendererConfig, commands: &[Command]) -> Result<(), TestCaseError> {
     let mut bit = Board::new(cfg, 32, Fidelity::Bit);
     let mut integer = Board::new(cfg, 32, Fidelity::Integer);
+    let mut sparse = Board::new(cfg, 32, Fidelity::Sparse);
     for (i, c) in commands.iter().enumerate() {
         let rb = bit.execute(c);
         let ri = integer.execute(c);
+        let rs = sparse.execute(c);
         prop_assert_eq!(&rb, &ri, "command {} {:?}: outcomes differ", i, c);
+        prop_assert_eq!(&ri, &rs, "command {} {:?}: sparse outcome differs", i, c);
         prop_assert_eq!(bit.free_at(), integer.free_at());
+        prop_assert_eq!(integer.free_at(), sparse.free_at());
     }
     prop_assert_eq!(bit.stats(), integer.stats());
-    let (ib, ii) = (bit.image(), integer.image());
+    prop_assert_eq!(integer.stats(), sparse.stats());
+    let (ib, ii, is) = (bit.image(), integer.image(), sparse.image());
     prop_assert!(
         ib == ii,
         "final state differs: {} vs {}",
         ib.digest(),
         ii.digest()
     );
+    prop_assert!(
+        ii == is,
+        "sparse final state differs: {} vs {}",
+        ii.digest(),
+        is.digest()
+    );
     Ok(())
+}
+
+/// The `sparse` level against `integer` after every command of `commands` (reading a sparse
+/// board's state computes what it deferred without changing it, so each step is compared).
+fn sparse_follows_integer(cfg: &RendererConfig, commands: &[Command]) -> Result<(), TestCaseError> {
+    let mut integer = Board::new(cfg, 32, Fidelity::Integer);
+    let mut sparse = Board::new(cfg, 32, Fidelity::Sparse);
+    for (i, c) in commands.iter().enumerate() {
+        prop_assert_eq!(
+            integer.execute(c),
+            sparse.execute(c),
+            "command {} {:?}",
+            i,
+            c
+        );
+        let (a, b) = (integer.image(), sparse.image());
+        prop_assert!(
+            a == b,
+            "after command {} {:?}: {} vs {}",
+            i,
+            c,
+            a.digest(),
+            b.digest()
+        );
+    }
+    Ok(())
+}
+
+/// Streams shaped like a GP program's receivers, which the `sparse` level defers: enable set
+/// from a flag or a constant, sign tests into flags and into enable, Logic steps between flags,
+/// enable ANDed with a flag, then the memory writes that make enable be read; with random
+/// commands mixed in and ops drawn from every truth table now and then.
+fn receivers() -> impl Strategy<Value = Vec<Command>> {
+    let flag = || (0u8..4).prop_map(Bit::Flag);
+    let often = |usual: LogicOp| prop_oneof![3 => Just(usual), 1 => logic_op()];
+    let sign = || {
+        (expr(), window(), any::<bool>()).prop_map(|(expr, window, exact)| {
+            let window = if exact {
+                let w = expr.sign_window((0, 0), 512, 512);
+                if w.bits <= 64 { w } else { window }
+            } else {
+                window
+            };
+            (expr, window)
+        })
+    };
+    let step = prop_oneof![
+        2 => (flag(), often(LogicOp::A)).prop_map(|(a, op)| Command::Logic { dst: Bit::Enable, a, b: a, op }),
+        1 => Just(Command::enable_all()),
+        4 => (sign(), flag(), often(LogicOp::B)).prop_map(|((expr, window), dst, combine)| {
+            Command::QeeSign { expr, window, dst, combine }
+        }),
+        2 => (sign(), often(LogicOp::AND)).prop_map(|((expr, window), combine)| {
+            Command::QeeSign { expr, window, dst: Bit::Enable, combine }
+        }),
+        2 => (flag(), flag(), flag(), logic_op()).prop_map(|(dst, a, b, op)| Command::Logic { dst, a, b, op }),
+        2 => (flag(), often(LogicOp::AND), any::<bool>()).prop_map(|(f, op, swap)| {
+            let (a, b) = if swap { (f, Bit::Enable) } else { (Bit::Enable, f) };
+            Command::Logic { dst: Bit::Enable, a, b, op }
+        }),
+        1 => any::<u64>().prop_map(|v| Command::WriteConst {
+            dst: Field { offset: 8, bits: 13, signed: false },
+            value: v & 0x1fff,
+        }),
+        1 => command(),
+    ];
+    (0u32..300, 0u32..300, prop::collection::vec(step, 1..40)).prop_map(|(x, y, mut v)| {
+        v.insert(0, Command::SetOrigin { x, y });
+        v
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+    #[test]
+    fn sparse_follows_integer_on_receiver_streams(commands in receivers()) {
+        sparse_follows_integer(&small(), &commands)?;
+    }
+
+    #[test]
+    fn sparse_agrees_with_bit_on_receiver_streams(commands in receivers()) {
+        run_both(&small(), &commands)?;
+    }
 }
 
 proptest! {
@@ -292,5 +387,6 @@ proptest! {
     fn the_enabled_groups_list_follows_enable(commands in prop::collection::vec(command(), 1..40)) {
         enabled_list_is_never_stale(Fidelity::Integer, &commands)?;
         enabled_list_is_never_stale(Fidelity::Bit, &commands)?;
+        enabled_list_is_never_stale(Fidelity::Sparse, &commands)?;
     }
 }

@@ -135,9 +135,7 @@ impl IntegerEngine {
         // A window that holds every value the expression takes on the board (as programs choose
         // them, `QeeExpr::sign_window`) needs no check, row by row, that it does not wrap.
         let g = self.geometry;
-        let origin = (s.origin_x as u32, s.origin_y as u32);
-        let bound = s.expr.bound(origin, g.width as u32, g.height as u32);
-        let checks = bound > Unwrapped::of(window).max as u128;
+        let checks = may_wrap(s, window, g);
         let cmd = (dst, combine);
         match (g.groups_per_row, checks) {
             (2, false) => self.sign_rows::<false>(s, window, cmd, active, &mut [0u64; 2]),
@@ -180,7 +178,8 @@ impl IntegerEngine {
             if g >= row_end {
                 let py = g / gpr;
                 (row_start, row_end) = (py * gpr, py * gpr + gpr);
-                sign_row::<CHECKS>(s.row_fn(py), (window, range), width, row_bits, &mut hints);
+                let span = (0, width - 1);
+                sign_row::<CHECKS>(s.row_fn(py), (window, range), span, row_bits, &mut hints);
             }
             let v = row_bits[g - row_start];
             match &mut flag {
@@ -194,13 +193,13 @@ impl IntegerEngine {
 /// The values of V whose window does not wrap: floor(V / 2^shift) fits `bits` bits as a signed
 /// number exactly when `min <= V <= max`. Computed once per command.
 #[derive(Clone, Copy)]
-struct Unwrapped {
+pub(super) struct Unwrapped {
     min: i64,
     max: i64,
 }
 
 impl Unwrapped {
-    fn of(window: Window) -> Unwrapped {
+    pub(super) fn of(window: Window) -> Unwrapped {
         // -2^(bits-1) * 2^shift ..= 2^(bits-1) * 2^shift - 1, clamped to i64 (shift + bits <= 64
         // by validation, so the clamp only ever removes nothing).
         let e = window.bits - 1 + window.shift;
@@ -215,6 +214,16 @@ impl Unwrapped {
     fn holds(self, v: i64) -> bool {
         self.min <= v && v <= self.max
     }
+}
+
+/// Whether a sign test of `s` through `window` may meet, somewhere on a board of `geometry`, a
+/// value the window cannot hold unwrapped: then its rows are checked one by one (`CHECKS`).
+pub(super) fn may_wrap(s: &Streams, window: Window, geometry: Geometry) -> bool {
+    let origin = (s.origin_x as u32, s.origin_y as u32);
+    let bound = s
+        .expr
+        .bound(origin, geometry.width as u32, geometry.height as u32);
+    bound > Unwrapped::of(window).max as u128
 }
 
 /// Set bits `lo ..= hi` of a row (one u64 per group).
@@ -296,59 +305,63 @@ fn first_true(lo: usize, hi: usize, guess: usize, pred: impl Fn(usize) -> bool) 
 /// Where a sign test's previous row found its answers: the next row's searches start there,
 /// since a boundary moves little from one row to the next (exactness does not depend on it).
 #[derive(Clone, Copy)]
-struct Hints {
+pub(super) struct Hints {
     /// The end of the span in each piece (the split between the pieces is found by division,
     /// `split`).
     first: [usize; 2],
 }
 
 impl Hints {
-    fn new(width: usize) -> Hints {
+    pub(super) fn new(width: usize) -> Hints {
         Hints {
             first: [width / 2; 2],
         }
     }
 }
 
-/// The W >= 0 bits of one row into `out` (one u64 per 64 columns).
+/// The W >= 0 bits of pixels `lo ..= hi` of one row into `out` (one u64 per 64 columns); the
+/// row's other bits are left 0. The `integer` level solves whole rows; the `sparse` level
+/// (`super::sparse`) only the span whose results can still matter.
 #[inline(always)]
-fn sign_row<const CHECKS: bool>(
+pub(super) fn sign_row<const CHECKS: bool>(
     v: RowFn,
     (window, range): (Window, Unwrapped),
-    width: usize,
+    (lo, hi): (usize, usize),
     out: &mut [u64],
     hints: &mut Hints,
 ) {
     out.fill(0);
-    let last = width - 1;
     if v.d == 0 {
-        return linear_sign_row::<CHECKS>(v, window, range, last, out);
+        return linear_sign_row::<CHECKS>(v, window, range, (lo, hi), out);
     }
-    // f(px + 1) - f(px) = D (2x + 1) + b: linear in px, so f is monotone on [0, k] and [k, last]
+    // f(px + 1) - f(px) = D (2x + 1) + b: linear in px, so f is monotone on [lo, k] and [k, hi]
     // where k is the first px at which the difference changes sign class.
     let diff = |px: usize| {
         let x = v.x0 + px as i64;
         v.d * (2 * x + 1) + v.b
     };
-    let k = if last == 0 || (diff(0) >= 0) == (diff(last - 1) >= 0) {
-        last
+    let k = if lo == hi || (diff(lo) >= 0) == (diff(hi - 1) >= 0) {
+        hi
     } else {
-        let rising = diff(0) < 0;
+        let rising = diff(lo) < 0;
         let flips = |px: usize| (diff(px) >= 0) == rising;
-        split(diff(0), v.d, last).unwrap_or_else(|| first_true(0, last - 1, last / 2, flips))
+        match split(diff(lo), v.d, hi - lo) {
+            Some(k) => lo + k,
+            None => first_true(lo, hi - 1, lo + (hi - lo) / 2, flips),
+        }
     };
     // V at the ends of the pieces, each evaluated once (the split's value serves both pieces).
-    let (f0, fl) = (v.at(0), v.at(last));
-    let fk = if k < last { v.at(k) } else { fl };
+    let (fa, fb) = (v.at(lo), v.at(hi));
+    let fk = if k < hi { v.at(k) } else { fb };
     // A monotone piece holds its values between those at its ends, so the row's window cannot
     // wrap when it holds these three; otherwise every pixel is evaluated.
-    if CHECKS && !(range.holds(f0) && range.holds(fk) && range.holds(fl)) {
-        return sign_pixels(v, window, 0, last, out);
+    if CHECKS && !(range.holds(fa) && range.holds(fk) && range.holds(fb)) {
+        return sign_pixels(v, window, lo, hi, out);
     }
     let [first, second] = &mut hints.first;
-    piece(v, (0, f0), (k, fk), first, out);
-    if k < last {
-        piece(v, (k, fk), (last, fl), second, out);
+    piece(v, (lo, fa), (k, fk), first, out);
+    if k < hi {
+        piece(v, (k, fk), (hi, fb), second, out);
     }
 }
 
@@ -398,28 +411,28 @@ fn split(diff0: i64, d: i64, last: usize) -> Option<usize> {
     Some((px.max(0) as usize).min(last - 1))
 }
 
-/// [`sign_row`] for a row along which V is linear, `f(px) = f(0) + b px`: the end of the span by
-/// one exact integer division.
+/// [`sign_row`] for a row along which V is linear, `f(px) = f(lo) + b (px - lo)`: the end of
+/// the span by one exact integer division.
 #[inline(always)]
 fn linear_sign_row<const CHECKS: bool>(
     v: RowFn,
     window: Window,
     range: Unwrapped,
-    last: usize,
+    (lo, hi): (usize, usize),
     out: &mut [u64],
 ) {
-    let (f0, fl) = (v.at(0), v.at(last));
-    if CHECKS && !(range.holds(f0) && range.holds(fl)) {
-        return sign_pixels(v, window, 0, last, out);
+    let (fa, fb) = (v.at(lo), v.at(hi));
+    if CHECKS && !(range.holds(fa) && range.holds(fb)) {
+        return sign_pixels(v, window, lo, hi, out);
     }
-    match (f0 >= 0, fl >= 0) {
-        (true, true) => set_span(out, 0, last),
+    match (fa >= 0, fb >= 0) {
+        (true, true) => set_span(out, lo, hi),
         (false, false) => {}
-        // Rising (b > 0, f0 < 0): f(px) >= 0 from px = ceil(-f0 / b). Both operands are
+        // Rising (b > 0, fa < 0): f(px) >= 0 from px = lo + ceil(-fa / b). Both operands are
         // positive and inside the unwrapped range, so nothing overflows.
-        (false, true) => set_span(out, ((-f0 + v.b - 1) / v.b) as usize, last),
-        // Falling (b < 0, f0 >= 0): f(px) >= 0 up to px = floor(f0 / -b).
-        (true, false) => set_span(out, 0, (f0 / -v.b) as usize),
+        (false, true) => set_span(out, lo + ((-fa + v.b - 1) / v.b) as usize, hi),
+        // Falling (b < 0, fa >= 0): f(px) >= 0 up to px = lo + floor(fa / -b).
+        (true, false) => set_span(out, lo, lo + (fa / -v.b) as usize),
     }
 }
 

@@ -21,6 +21,7 @@
 
 pub mod bit;
 pub mod integer;
+pub mod sparse;
 
 use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
 use crate::qee::{Streams, Window};

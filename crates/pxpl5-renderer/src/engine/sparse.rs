@@ -1,0 +1,682 @@
+//! The `sparse` fidelity level: the `integer` level's pixel memory and arithmetic, with the
+//! one-bit registers kept symbolically until something reads them, so that what a scene does not
+//! require is not simulated. Bit-identical to `bit` and `integer` (the property tests hold it to
+//! both); only host work differs.
+//!
+//! **Why.** A receiver's edges are drawn as sign tests into scratch flags, a Logic step combining
+//! them, and `enable := enable AND t` ([`crate::command`]). Each edge's half-space passes through
+//! the view's centre, so the enable after k edges is a wedge that spans most rows until the last
+//! edge: drawn command by command, every edge costs the whole disk, whatever the receiver covers.
+//! Yet nothing reads the enable between the edges, and the next receiver overwrites the scratch
+//! flags wherever this one wrote them.
+//!
+//! **How.** Enable is held as a *chain*: a plane (the `base`, a copy of what enable was set
+//! from) AND a list of conjuncts, each a boolean function of one or two sign tests, which are
+//! pure functions of the pixel's address. A flag is held as its last materialised plane under a
+//! stack of *layers*: "where the chain's first k conjuncts held, the flag became this value".
+//! Only the command patterns below are deferred; any other command first materialises exactly
+//! the registers it reads or writes, then runs on the `integer` engine.
+//!
+//! - `enable := X` (a flag, a constant, or enable itself through any one-input op) starts a
+//!   chain from X's plane (an *epoch*).
+//! - A sign test into a flag by an op that ignores the old value, or a Logic step of two flags
+//!   whose latest layers were written under the current chain, pushes a layer.
+//! - `enable := enable AND f` (or any op that keeps a disabled pixel disabled), with f's latest
+//!   layer written under the current chain, and a sign test into enable by such an op, append a
+//!   conjunct.
+//!
+//! A layer is dropped, unevaluated, when a later layer of the same flag is written where it was:
+//! under the same chain with no more conjuncts, or under a chain whose base holds the old
+//! chain's base. Materialising enable is an AND of conjuncts, so each row takes them in any order:
+//! first the one that emptied the previous row, and a row stops at the first conjunct that empties
+//! it. Materialising a flag replays its layers in order, as the commands would have. Both are
+//! exact: each deferred value is computed from the same expressions, by the same row solver
+//! (`integer::sign_row`), at every pixel where it can be seen.
+
+use super::integer::{Hints, IntegerEngine, Unwrapped, may_wrap, sign_row};
+use super::{Geometry, PixelEngine, QeeSink, Registers, gated};
+use crate::command::{Bit, Cmp, Command, Field, LogicOp, Rect};
+use crate::qee::{Streams, Window};
+
+/// Most layers one flag holds before it is materialised, and most epochs alive before every flag
+/// is: bounds on host memory for streams whose layers are never overwritten (each epoch keeps a
+/// plane of the board). A receiver of the radiosity program leaves at most one epoch and four
+/// layers a flag.
+const MAX_LAYERS: usize = 32;
+const MAX_EPOCHS: usize = 64;
+/// Most conjuncts in one chain before enable is materialised (the program's polygons have a few).
+const MAX_CONJUNCTS: usize = 256;
+
+/// A deferred sign test: W >= 0 of its expression at the origin it was issued with.
+struct SignTerm {
+    streams: Streams,
+    window: Window,
+    range: Unwrapped,
+    /// Whether a row's values may leave the window's unwrapped range (`integer::may_wrap`).
+    checks: bool,
+}
+
+/// `op(sign a, sign b)` of two sign tests of one epoch (a = b for a function of one).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Value {
+    op: LogicOp,
+    a: u32,
+    b: u32,
+}
+
+impl Value {
+    /// The value `h(self)` for a one-input function `h`.
+    fn then(self, h: impl Fn(bool) -> bool) -> Value {
+        let f = self.op;
+        Value {
+            op: table(|p, q| h(eval(f, p, q))),
+            ..self
+        }
+    }
+}
+
+/// A chain's start and what it has been ANDed with: enable at the chain's tip is
+/// `base AND conj[0] AND ...`, and a layer written after k conjuncts is gated by the first k.
+struct Epoch {
+    base: Vec<u64>,
+    signs: Vec<SignTerm>,
+    conj: Vec<Value>,
+    /// Layers and the enable that refer to this epoch.
+    refs: u32,
+}
+
+/// "Where the first `k` conjuncts of `epoch` held, the flag became `value`."
+#[derive(Clone, Copy, Debug)]
+struct Layer {
+    epoch: u32,
+    k: u32,
+    value: Value,
+}
+
+/// The `sparse` level's pixel state.
+pub struct SparseEngine {
+    inner: IntegerEngine,
+    geometry: Geometry,
+    /// `Some(e)`: enable is epoch e's chain at its tip; `None`: it is the inner engine's plane.
+    enable: Option<u32>,
+    /// Per flag, the layers over the inner engine's plane, oldest first.
+    layers: Vec<Vec<Layer>>,
+    epochs: Vec<Option<Epoch>>,
+    free: Vec<u32>,
+    /// Set when enable was materialised: the board's list of enabled groups is then stale.
+    enable_materialised: bool,
+}
+
+impl SparseEngine {
+    pub fn new(geometry: Geometry, memory_bits: u32, flag_count: usize) -> SparseEngine {
+        SparseEngine {
+            inner: IntegerEngine::new(geometry, memory_bits, flag_count),
+            geometry,
+            enable: None,
+            layers: vec![Vec::new(); flag_count],
+            epochs: Vec::new(),
+            free: Vec::new(),
+            enable_materialised: false,
+        }
+    }
+
+    /// Whether enable was materialised since the last call (the caller's enabled-group list is
+    /// then stale).
+    pub fn take_enable_materialised(&mut self) -> bool {
+        std::mem::take(&mut self.enable_materialised)
+    }
+
+    /// Defer `cmd` if it is one of the patterns of the module doc; whether it was. `origin` is
+    /// the board's region origin, which a deferred sign test keeps.
+    pub fn defer(&mut self, cmd: &Command, origin: (u32, u32)) -> bool {
+        match *cmd {
+            Command::Logic {
+                dst: Bit::Enable,
+                a,
+                b,
+                op,
+            } => self.defer_enable_logic(a, b, op),
+            Command::Logic {
+                dst: Bit::Flag(f),
+                a: Bit::Flag(x),
+                b: Bit::Flag(y),
+                op,
+            } => self.defer_flag_logic(f, (x, y), op),
+            Command::QeeSign {
+                ref expr,
+                window,
+                dst,
+                combine,
+            } => {
+                let term = || {
+                    let streams = Streams::for_rows(expr, origin);
+                    SignTerm {
+                        checks: may_wrap(&streams, window, self.geometry),
+                        streams,
+                        window,
+                        range: Unwrapped::of(window),
+                    }
+                };
+                match dst {
+                    // dst := combine(dst, S) with combine ignoring dst's old value.
+                    Bit::Flag(f) if ignores_a(combine) => {
+                        let term = term();
+                        let e = self.chain();
+                        let s = self.push_sign(e, term);
+                        let value = Value {
+                            op: combine,
+                            a: s,
+                            b: s,
+                        };
+                        self.push_layer(f, e, value);
+                        true
+                    }
+                    // enable := combine(enable, S), a disabled pixel staying disabled.
+                    Bit::Enable if combine.keeps_zero() => {
+                        let term = term();
+                        let e = self.chain();
+                        let s = self.push_sign(e, term);
+                        let value = Value {
+                            op: table(|_, q| eval(combine, true, q)),
+                            a: s,
+                            b: s,
+                        };
+                        self.push_conjunct(e, value);
+                        true
+                    }
+                    _ => false,
+                }
+            }
+            _ => false,
+        }
+    }
+
+    /// `enable := op(a, b)`.
+    fn defer_enable_logic(&mut self, a: Bit, b: Bit, op: LogicOp) -> bool {
+        // One input that matters (or none): enable becomes a function of one plane.
+        let (source, h): (Option<Bit>, Box<dyn Fn(bool) -> bool>) = if a == b {
+            (Some(a), Box::new(move |x| eval(op, x, x)))
+        } else if ignores_b(op) {
+            (Some(a), Box::new(move |x| eval(op, x, false)))
+        } else if ignores_a(op) {
+            (Some(b), Box::new(move |x| eval(op, false, x)))
+        } else {
+            // enable := enable AND f, or any op that keeps a disabled pixel disabled.
+            let (flag, keeps) = match (a, b) {
+                (Bit::Enable, Bit::Flag(x)) => {
+                    (x, !eval(op, false, false) && !eval(op, false, true))
+                }
+                (Bit::Flag(x), Bit::Enable) => {
+                    (x, !eval(op, false, false) && !eval(op, true, false))
+                }
+                _ => return false,
+            };
+            let Some(e) = self.enable else { return false };
+            let Some(v) = self.top_at(flag, e) else {
+                return false;
+            };
+            if !keeps {
+                return false;
+            }
+            let h = |x: bool| {
+                if a == Bit::Enable {
+                    eval(op, true, x)
+                } else {
+                    eval(op, x, true)
+                }
+            };
+            self.push_conjunct(e, v.then(h));
+            return true;
+        };
+        let (h0, h1) = (h(false), h(true));
+        let base = match (source, h0, h1) {
+            (_, false, false) => vec![0; self.geometry.groups],
+            (_, true, true) => vec![u64::MAX; self.geometry.groups],
+            // enable := enable: nothing changes.
+            (Some(Bit::Enable), false, true) => return true,
+            (Some(Bit::Flag(x)), false, true) => {
+                self.materialise_flag(x as usize);
+                self.inner.registers().flags[x as usize].clone()
+            }
+            _ => return false,
+        };
+        if let Some(old) = self.enable.take() {
+            self.release(old);
+        }
+        let e = self.new_epoch(base);
+        self.enable = Some(e);
+        true
+    }
+
+    /// `f := op(x, y)` gated by enable: deferred when x's and y's latest layers were written
+    /// under the current chain, each the function of one sign test.
+    fn defer_flag_logic(&mut self, f: u8, (x, y): (u8, u8), op: LogicOp) -> bool {
+        let Some(e) = self.enable else { return false };
+        let (Some(vx), Some(vy)) = (self.top_at(x, e), self.top_at(y, e)) else {
+            return false;
+        };
+        if vx.a != vx.b || vy.a != vy.b {
+            return false;
+        }
+        let value = Value {
+            op: table(|p, q| eval(op, eval(vx.op, p, p), eval(vy.op, q, q))),
+            a: vx.a,
+            b: vy.a,
+        };
+        self.push_layer(f, e, value);
+        true
+    }
+
+    /// Flag f's latest layer's value, if it was written under epoch e's chain at its tip.
+    fn top_at(&self, f: u8, e: u32) -> Option<Value> {
+        let top = self.layers[f as usize].last()?;
+        let tip = self.epoch(e).conj.len() as u32;
+        (top.epoch == e && top.k == tip).then_some(top.value)
+    }
+
+    /// The epoch of enable's chain, starting one from enable's plane if it has none.
+    fn chain(&mut self) -> u32 {
+        match self.enable {
+            Some(e) => e,
+            None => {
+                let base = self.inner.registers().enable.clone();
+                let e = self.new_epoch(base);
+                self.enable = Some(e);
+                e
+            }
+        }
+    }
+
+    fn push_sign(&mut self, e: u32, term: SignTerm) -> u32 {
+        let signs = &mut self.epoch_mut(e).signs;
+        signs.push(term);
+        signs.len() as u32 - 1
+    }
+
+    fn push_conjunct(&mut self, e: u32, value: Value) {
+        let conj = &mut self.epoch_mut(e).conj;
+        conj.push(value);
+        if conj.len() >= MAX_CONJUNCTS {
+            self.materialise_enable();
+        }
+    }
+
+    /// Push a layer onto flag f under epoch e's chain at its tip, first dropping the layers it
+    /// covers.
+    fn push_layer(&mut self, f: u8, e: u32, value: Value) {
+        let f = f as usize;
+        let k = self.epoch(e).conj.len() as u32;
+        // The last other epoch checked, and whether the new gate covers its base.
+        let mut checked: Option<(u32, bool)> = None;
+        while let Some(top) = self.layers[f].last().copied() {
+            let covered = if top.epoch == e {
+                top.k >= k
+            } else if k == 0 {
+                match checked {
+                    Some((c, covered)) if c == top.epoch => covered,
+                    _ => {
+                        let covered = holds(&self.epoch(e).base, &self.epoch(top.epoch).base);
+                        checked = Some((top.epoch, covered));
+                        covered
+                    }
+                }
+            } else {
+                false
+            };
+            if !covered {
+                break;
+            }
+            self.layers[f].pop();
+            self.release(top.epoch);
+        }
+        self.epoch_mut(e).refs += 1;
+        self.layers[f].push(Layer { epoch: e, k, value });
+        if self.layers[f].len() > MAX_LAYERS {
+            self.materialise_flag(f);
+        }
+    }
+
+    fn new_epoch(&mut self, base: Vec<u64>) -> u32 {
+        if self.epochs.len() - self.free.len() >= MAX_EPOCHS {
+            for f in 0..self.layers.len() {
+                self.materialise_flag(f);
+            }
+        }
+        let epoch = Epoch {
+            base,
+            signs: Vec::new(),
+            conj: Vec::new(),
+            refs: 1,
+        };
+        match self.free.pop() {
+            Some(e) => {
+                self.epochs[e as usize] = Some(epoch);
+                e
+            }
+            None => {
+                self.epochs.push(Some(epoch));
+                self.epochs.len() as u32 - 1
+            }
+        }
+    }
+
+    fn release(&mut self, e: u32) {
+        let ep = self.epoch_mut(e);
+        ep.refs -= 1;
+        if ep.refs == 0 {
+            self.epochs[e as usize] = None;
+            self.free.push(e);
+        }
+    }
+
+    fn epoch(&self, e: u32) -> &Epoch {
+        self.epochs[e as usize]
+            .as_ref()
+            .expect("a live epoch: every reference holds a count")
+    }
+
+    fn epoch_mut(&mut self, e: u32) -> &mut Epoch {
+        self.epochs[e as usize]
+            .as_mut()
+            .expect("a live epoch: every reference holds a count")
+    }
+
+    /// Materialise what `cmd` reads or writes among the one-bit registers, before it runs on the
+    /// `integer` engine.
+    pub fn prepare(&mut self, cmd: &Command) {
+        let flag = |b: Bit| match b {
+            Bit::Flag(f) => Some(f as usize),
+            Bit::Enable => None,
+        };
+        let flags: [Option<usize>; 3] = match *cmd {
+            Command::SetOrigin { .. }
+            | Command::Fence
+            | Command::Save { .. }
+            | Command::Load { .. }
+            | Command::WritePixels { .. }
+            | Command::Readback { .. } => return,
+            Command::Logic { dst, a, b, .. } => [flag(dst), flag(a), flag(b)],
+            Command::QeeSign { dst, .. }
+            | Command::QeeCompare { dst, .. }
+            | Command::Compare { dst, .. } => [flag(dst), None, None],
+            _ => [None; 3],
+        };
+        self.materialise_enable();
+        for f in flags.into_iter().flatten() {
+            self.materialise_flag(f);
+        }
+    }
+
+    fn materialise_enable(&mut self) {
+        let Some(e) = self.enable.take() else { return };
+        let plane = self.chain_plane(e);
+        self.inner.registers_mut().enable = plane;
+        self.release(e);
+        self.enable_materialised = true;
+    }
+
+    fn materialise_flag(&mut self, f: usize) {
+        if self.layers[f].is_empty() {
+            return;
+        }
+        let plane = self.flag_plane(f);
+        self.inner.registers_mut().flags[f] = plane;
+        for layer in std::mem::take(&mut self.layers[f]) {
+            self.release(layer.epoch);
+        }
+    }
+
+    /// The registers as the commands so far left them, without changing what is deferred.
+    pub fn materialised(&self) -> Registers {
+        let regs = self.inner.registers();
+        Registers {
+            enable: match self.enable {
+                Some(e) => self.chain_plane(e),
+                None => regs.enable.clone(),
+            },
+            flags: (0..regs.flags.len()).map(|f| self.flag_plane(f)).collect(),
+        }
+    }
+
+    /// Enable at the tip of epoch e's chain: each row ANDs the conjuncts, the one that emptied
+    /// the previous row first, and stops once it is empty.
+    fn chain_plane(&self, e: u32) -> Vec<u64> {
+        let ep = self.epoch(e);
+        let mut plane = ep.base.clone();
+        if ep.conj.is_empty() {
+            return plane;
+        }
+        let g = self.geometry;
+        let gpr = g.groups_per_row;
+        let mut rows = Rows::new(ep, g);
+        let mut killer = 0;
+        for (py, m) in plane.chunks_exact_mut(gpr).enumerate() {
+            if m.iter().all(|&w| w == 0) {
+                continue;
+            }
+            let order = std::iter::once(killer).chain((0..ep.conj.len()).filter(|&j| j != killer));
+            for j in order {
+                let v = rows.value(ep.conj[j], py, m);
+                let mut any = 0;
+                for (m, &v) in m.iter_mut().zip(v) {
+                    *m &= v;
+                    any |= *m;
+                }
+                if any == 0 {
+                    killer = j;
+                    break;
+                }
+            }
+        }
+        plane
+    }
+
+    /// Flag f with its layers replayed in order, each where its gate holds.
+    fn flag_plane(&self, f: usize) -> Vec<u64> {
+        let mut plane = self.inner.registers().flags[f].clone();
+        let layers = &self.layers[f];
+        let g = self.geometry;
+        let gpr = g.groups_per_row;
+        let mut gate = vec![0u64; gpr];
+        // Each epoch's layers are consecutive, their k ascending.
+        for run in layers.chunk_by(|a, b| a.epoch == b.epoch) {
+            let ep = self.epoch(run[0].epoch);
+            let mut rows = Rows::new(ep, g);
+            for (py, out) in plane.chunks_exact_mut(gpr).enumerate() {
+                gate.copy_from_slice(&ep.base[py * gpr..py * gpr + gpr]);
+                let mut applied = 0;
+                for layer in run {
+                    while applied < layer.k as usize && gate.iter().any(|&w| w != 0) {
+                        let v = rows.value(ep.conj[applied], py, &gate);
+                        for (m, &v) in gate.iter_mut().zip(v) {
+                            *m &= v;
+                        }
+                        applied += 1;
+                    }
+                    // A later layer's gate lies inside this one's.
+                    if gate.iter().all(|&w| w == 0) {
+                        break;
+                    }
+                    let v = rows.value(layer.value, py, &gate);
+                    for ((o, &m), &v) in out.iter_mut().zip(gate.iter()).zip(v) {
+                        *o = gated(*o, m, v);
+                    }
+                }
+            }
+        }
+        plane
+    }
+}
+
+/// Row evaluation of one epoch's values: each sign test keeps its row solver's hints, and two
+/// row buffers hold the sign bits.
+struct Rows<'a> {
+    ep: &'a Epoch,
+    width: usize,
+    hints: Vec<Hints>,
+    a: Vec<u64>,
+    b: Vec<u64>,
+}
+
+impl<'a> Rows<'a> {
+    fn new(ep: &'a Epoch, g: Geometry) -> Rows<'a> {
+        Rows {
+            ep,
+            width: g.width,
+            hints: vec![Hints::new(g.width); ep.signs.len()],
+            a: vec![0; g.groups_per_row],
+            b: vec![0; g.groups_per_row],
+        }
+    }
+
+    /// `v` on row `py`, exact at the pixels of `mask` (a nonzero row); other bits unspecified.
+    fn value(&mut self, v: Value, py: usize, mask: &[u64]) -> &[u64] {
+        let span = span_of(mask, self.width);
+        self.sign(v.a, py, span, true);
+        if v.a != v.b {
+            self.sign(v.b, py, span, false);
+            for (x, &y) in self.a.iter_mut().zip(&self.b) {
+                *x = v.op.apply(*x, y);
+            }
+        } else {
+            for x in self.a.iter_mut() {
+                *x = v.op.apply(*x, *x);
+            }
+        }
+        &self.a
+    }
+
+    fn sign(&mut self, s: u32, py: usize, span: (usize, usize), into_a: bool) {
+        let t = &self.ep.signs[s as usize];
+        let out = if into_a { &mut self.a } else { &mut self.b };
+        let hints = &mut self.hints[s as usize];
+        let row = t.streams.row_fn(py);
+        if t.checks {
+            sign_row::<true>(row, (t.window, t.range), span, out, hints);
+        } else {
+            sign_row::<false>(row, (t.window, t.range), span, out, hints);
+        }
+    }
+}
+
+/// The first and last set bit of a nonzero row.
+fn span_of(mask: &[u64], width: usize) -> (usize, usize) {
+    let first = mask.iter().position(|&w| w != 0);
+    let last = mask.iter().rposition(|&w| w != 0);
+    match (first, last) {
+        (Some(f), Some(l)) => (
+            f * 64 + mask[f].trailing_zeros() as usize,
+            l * 64 + 63 - mask[l].leading_zeros() as usize,
+        ),
+        _ => (0, width - 1),
+    }
+}
+
+/// Whether plane `outer` holds every set bit of `inner`.
+fn holds(outer: &[u64], inner: &[u64]) -> bool {
+    outer.iter().zip(inner).all(|(&o, &i)| i & !o == 0)
+}
+
+/// The op's result for one pixel's inputs.
+fn eval(op: LogicOp, a: bool, b: bool) -> bool {
+    (op.0 >> ((u8::from(a) << 1) | u8::from(b))) & 1 != 0
+}
+
+/// The op whose truth table is `f`.
+fn table(f: impl Fn(bool, bool) -> bool) -> LogicOp {
+    let mut t = 0u8;
+    for (a, b) in [(false, false), (false, true), (true, false), (true, true)] {
+        t |= u8::from(f(a, b)) << ((u8::from(a) << 1) | u8::from(b));
+    }
+    LogicOp(t)
+}
+
+fn ignores_a(op: LogicOp) -> bool {
+    (op.0 >> 2) & 0b11 == op.0 & 0b11
+}
+
+fn ignores_b(op: LogicOp) -> bool {
+    let t = |k: u8| (op.0 >> k) & 1;
+    t(0) == t(1) && t(2) == t(3)
+}
+
+/// Every operation but the one-bit registers' is the `integer` engine's, run after `prepare`.
+impl PixelEngine for SparseEngine {
+    fn registers(&self) -> &Registers {
+        self.inner.registers()
+    }
+
+    fn registers_mut(&mut self) -> &mut Registers {
+        self.inner.registers_mut()
+    }
+
+    fn qee(&mut self, streams: &Streams, window: Window, sink: QeeSink, active: &[u32]) {
+        self.inner.qee(streams, window, sink, active)
+    }
+
+    fn write_const(&mut self, dst: Field, value: u64, active: &[u32]) {
+        self.inner.write_const(dst, value, active)
+    }
+
+    fn copy(&mut self, dst: Field, src: Field, active: &[u32]) {
+        self.inner.copy(dst, src, active)
+    }
+
+    fn add_sub(&mut self, dst: Field, a: Field, b: Field, subtract: bool, active: &[u32]) {
+        self.inner.add_sub(dst, a, b, subtract, active)
+    }
+
+    fn compare(
+        &mut self,
+        a: Field,
+        b: Field,
+        cmp: Cmp,
+        dst: Bit,
+        combine: LogicOp,
+        active: &[u32],
+    ) {
+        self.inner.compare(a, b, cmp, dst, combine, active)
+    }
+
+    fn mul_const(&mut self, dst: Field, src: Field, k: i64, k_bits: u32, active: &[u32]) {
+        self.inner.mul_const(dst, src, k, k_bits, active)
+    }
+
+    fn read_planes(&self, field: Field) -> Vec<u64> {
+        self.inner.read_planes(field)
+    }
+
+    fn write_planes(&mut self, field: Field, planes: &[u64]) {
+        self.inner.write_planes(field, planes)
+    }
+
+    fn read_values(&self, field: Field, rect: Rect) -> Vec<u64> {
+        self.inner.read_values(field, rect)
+    }
+
+    fn write_values(&mut self, field: Field, rect: Rect, values: &[u64]) {
+        self.inner.write_values(field, rect, values)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn truth_tables_compose() {
+        for t in 0..16u8 {
+            let op = LogicOp(t);
+            assert_eq!(table(|a, b| eval(op, a, b)), op);
+            for (a, b) in [(false, false), (false, true), (true, false), (true, true)] {
+                assert_eq!(eval(op, a, b), op.apply(a as u64, b as u64) & 1 != 0);
+                if ignores_a(op) {
+                    assert_eq!(eval(op, a, b), eval(op, !a, b));
+                }
+                if ignores_b(op) {
+                    assert_eq!(eval(op, a, b), eval(op, a, !b));
+                }
+            }
+        }
+    }
+}
