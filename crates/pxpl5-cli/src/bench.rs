@@ -31,7 +31,8 @@ use crate::output::outln;
 /// Options of `pxpl5 bench renderer`.
 #[derive(Args, Clone, Debug)]
 pub struct RendererArgs {
-    /// Fidelity level: bit (every micro-cycle on bit-planes), integer (per-pixel integers), or all.
+    /// Fidelity level: bit (every micro-cycle on bit-planes), integer (per-pixel integers), sparse
+    /// (integer with the one-bit registers deferred), or all.
     #[arg(long, value_enum, default_value_t = BenchFidelity::All)]
     pub fidelity: BenchFidelity,
     /// Machine config (RON); default: the embedded seed machine.
@@ -362,7 +363,7 @@ fn count_instructions(args: &[String], function: &str) -> Result<u64, UserError>
 /// Options of `pxpl5 bench machine`.
 #[derive(Args, Clone, Debug)]
 pub struct MachineArgs {
-    /// Fidelity level of the Renderers: bit, integer, or all.
+    /// Fidelity level of the Renderers: bit, integer, sparse, or all.
     #[arg(long, value_enum, default_value_t = BenchFidelity::Integer)]
     pub fidelity: BenchFidelity,
     /// Machine config (RON); default: the embedded seed machine.

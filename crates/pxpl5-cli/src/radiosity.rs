@@ -119,7 +119,7 @@ pub struct RadiosityArgs {
     /// Output directory.
     #[arg(long, default_value = "out/radiosity")]
     pub out: PathBuf,
-    /// Renderer fidelity level: bit or integer (exact, identical results and cycles), or timing
+    /// Renderer fidelity level: bit, integer or sparse (exact, identical results and cycles), or timing
     /// (approximate: no pixel work, form factors from the exact formula on the host; only for a
     /// scene where no surface hides another).
     #[arg(long, value_enum, default_value_t = FidelityArg::Integer)]

@@ -58,7 +58,7 @@ pub struct RunArgs {
     pub out: PathBuf,
     #[command(flatten)]
     pub traces: TraceArgs,
-    /// Renderer fidelity level: bit or integer (identical results and cycles). The approximate
+    /// Renderer fidelity level: bit, integer or sparse (identical results and cycles). The approximate
     /// timing level draws no pixels, so it cannot make this program's picture: radiosity only.
     #[arg(long, value_enum, default_value_t = FidelityArg::Integer)]
     pub fidelity: FidelityArg,

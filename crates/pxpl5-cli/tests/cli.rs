@@ -117,10 +117,13 @@ fn bench_levels_print_the_same_cycles_and_digest() {
     assert_eq!(streams[1]["method"], "hemicube");
     for s in streams {
         let levels = s["levels"].as_array().unwrap();
-        assert_eq!(levels.len(), 2);
+        assert_eq!(levels.len(), 3);
         assert_eq!(levels[0]["fidelity"], "bit");
-        assert_eq!(levels[0]["renderer_cycles"], levels[1]["renderer_cycles"]);
-        assert_eq!(levels[0]["digest"], levels[1]["digest"]);
+        assert_eq!(levels[2]["fidelity"], "sparse");
+        for other in &levels[1..] {
+            assert_eq!(levels[0]["renderer_cycles"], other["renderer_cycles"]);
+            assert_eq!(levels[0]["digest"], other["digest"]);
+        }
         assert!(levels[0]["renderer_cycles"].as_u64().unwrap() > 50_000);
         assert_eq!(s["shooters"].as_array().unwrap().len(), 1);
     }
@@ -146,11 +149,10 @@ fn machine_bench_levels_give_the_same_time_and_solution() {
     assert_eq!(methods.len(), 2);
     for m in methods {
         let levels = m["levels"].as_array().unwrap();
-        assert_eq!(levels.len(), 2);
-        assert_eq!(
-            levels[0]["simulated_seconds"],
-            levels[1]["simulated_seconds"]
-        );
+        assert_eq!(levels.len(), 3);
+        for other in &levels[1..] {
+            assert_eq!(levels[0]["simulated_seconds"], other["simulated_seconds"]);
+        }
         // Two shots (one batch of the seed's 4 shooters cut to 2) take a few simulated ms.
         let t = levels[0]["simulated_seconds"].as_f64().unwrap();
         assert!((1e-3..20e-3).contains(&t), "{m}");
@@ -336,7 +338,7 @@ fn fidelity_word_is_a_hidden_alias_of_integer() {
         let entry = help.split("--fidelity <FIDELITY>").nth(1).unwrap();
         let entry = entry.split("\n      --").next().unwrap();
         assert!(
-            entry.contains("[possible values: bit, integer, timing]"),
+            entry.contains("[possible values: bit, integer, sparse, timing]"),
             "{entry}"
         );
         assert!(!entry.contains("word"), "{entry}");

@@ -44,8 +44,13 @@ use crate::qee::{Streams, Window};
 /// layers a flag.
 const MAX_LAYERS: usize = 32;
 const MAX_EPOCHS: usize = 64;
-/// Most conjuncts in one chain before enable is materialised (the program's polygons have a few).
-const MAX_CONJUNCTS: usize = 256;
+/// Most conjuncts in one chain before enable is materialised (the program's polygons have a few;
+/// the solver keeps the undecided ones as bits of a u64).
+const MAX_CONJUNCTS: usize = 64;
+
+/// Areas of at most this many rows are solved row by row: below it, halving costs more bounds
+/// than the row searches it saves.
+const LEAF_ROWS: usize = 8;
 
 /// A deferred sign test: W >= 0 of its expression at the origin it was issued with.
 struct SignTerm {
@@ -438,8 +443,11 @@ impl SparseEngine {
         }
     }
 
-    /// Enable at the tip of epoch e's chain: each row ANDs the conjuncts, the one that emptied
-    /// the previous row first, and stops once it is empty.
+    /// Enable at the tip of epoch e's chain. The AND of the conjuncts is taken on rectangles,
+    /// halved until decided: a conjunct bounded false on a rectangle clears it, one bounded true
+    /// there is dropped for it, and what is left on a one-row rectangle is solved row-exactly (the
+    /// conjunct that emptied the last such row first). Only a receiver's outline reaches rows, not
+    /// the wedges its edges cut the disk into (module doc).
     fn chain_plane(&self, e: u32) -> Vec<u64> {
         let ep = self.epoch(e);
         let mut plane = ep.base.clone();
@@ -447,26 +455,29 @@ impl SparseEngine {
             return plane;
         }
         let g = self.geometry;
-        let gpr = g.groups_per_row;
-        let mut rows = Rows::new(ep, g);
-        let mut killer = 0;
-        for (py, m) in plane.chunks_exact_mut(gpr).enumerate() {
-            if m.iter().all(|&w| w == 0) {
-                continue;
-            }
-            let order = std::iter::once(killer).chain((0..ep.conj.len()).filter(|&j| j != killer));
-            for j in order {
-                let v = rows.value(ep.conj[j], py, m);
-                let mut any = 0;
-                for (m, &v) in m.iter_mut().zip(v) {
-                    *m &= v;
-                    any |= *m;
-                }
-                if any == 0 {
-                    killer = j;
-                    break;
-                }
-            }
+        let mut solver = Solver {
+            rows: Rows::new(ep, g),
+            bounds: ep.signs.iter().map(Bounds::of).collect(),
+            spans: row_spans(&plane, g),
+            tables: ep
+                .conj
+                .iter()
+                .map(|&v| u64::from(possible_values(v)))
+                .collect(),
+            gpr: g.groups_per_row,
+            killer: 0,
+            row: vec![0; g.groups_per_row],
+        };
+        let live = u64::MAX >> (64 - ep.conj.len());
+        let whole = Area {
+            x0: 0,
+            x1: g.width - 1,
+            y0: 0,
+            y1: g.height - 1,
+        };
+        // Only where the base has pixels (a view's disk, say) is there anything to decide.
+        if let Some(area) = solver.trim(whole) {
+            solver.solve(&mut plane, area, live);
         }
         plane
     }
@@ -556,6 +567,263 @@ impl<'a> Rows<'a> {
         } else {
             sign_row::<false>(row, (t.window, t.range), span, out, hints);
         }
+    }
+}
+
+/// A rectangle of the array: columns `x0 ..= x1`, rows `y0 ..= y1`.
+#[derive(Clone, Copy, Debug)]
+struct Area {
+    x0: usize,
+    x1: usize,
+    y0: usize,
+    y1: usize,
+}
+
+/// What a conjunct is on an area, as far as bounds tell.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Known {
+    True,
+    False,
+    Unknown,
+}
+
+/// The values a sign test may take on an area, as a mask: bit 0 false, bit 1 true.
+const MAY_BE_FALSE: u32 = 0b01;
+const MAY_BE_TRUE: u32 = 0b10;
+
+/// For each pair of masks `p | q << 2`, the mask of values `op(p, q)` may take, two bits an
+/// entry (for a value of one sign test, q is ignored).
+fn possible_values(v: Value) -> u32 {
+    let mut table = 0;
+    for p in 1..4u32 {
+        for q in 0..4u32 {
+            let mut out = 0;
+            for x in (0..2).filter(|x| p >> x & 1 != 0) {
+                let ys: &[u32] = if v.a == v.b { &[x] } else { &[0, 1] };
+                for &y in ys.iter().filter(|&&y| v.a == v.b || q >> y & 1 != 0) {
+                    out |= 1 << u32::from(eval(v.op, x == 1, y == 1));
+                }
+            }
+            table |= out << (2 * (p | q << 2));
+        }
+    }
+    table
+}
+
+/// A sign test's expression and origin, for bounds on an area; `None` for a test whose window
+/// may wrap (its sign is then not V's, and only rows decide). In i64: the config's bound on the
+/// QEE tree (`coefficient bits + 2 coordinate bits + 3 <= 64`) keeps each term under 2^60, so any
+/// sum of the six terms' bounds fits.
+struct Bounds(Option<([i64; 6], (i64, i64))>);
+
+impl Bounds {
+    fn of(t: &SignTerm) -> Bounds {
+        let e = &t.streams.expr;
+        let origin = (t.streams.origin_x, t.streams.origin_y);
+        Bounds((!t.checks).then_some(([e.a, e.b, e.c, e.d, e.e, e.f], origin)))
+    }
+
+    /// W >= 0 on the area. V is expanded about the area's first pixel (x0, y0): with
+    /// dx in 0 ..= W and dy in 0 ..= H,
+    /// `V = V0 + gx dx + gy dy + D dx^2 + E dx dy + F dy^2`, `gx = 2 D x0 + E y0 + A`,
+    /// `gy = E x0 + 2 F y0 + B`, and each term's interval is from 0 to its value at (W, H). About
+    /// the area rather than the address origin, the terms do not cancel, so the bounds stay tight.
+    /// Each product is under 2^62 by the config's bound on the tree; the sums are in i128. W >= 0
+    /// exactly where V >= 0 when the window cannot wrap (floor(V / 2^shift) keeps V's sign).
+    #[inline]
+    fn sign(&self, r: Area) -> u32 {
+        let Some(([a, b, c, d, e, f], (ox, oy))) = self.0 else {
+            return MAY_BE_FALSE | MAY_BE_TRUE;
+        };
+        let (x0, y0) = (ox + r.x0 as i64, oy + r.y0 as i64);
+        let (w, h) = ((r.x1 - r.x0) as i64, (r.y1 - r.y0) as i64);
+        let v0 = a * x0 + b * y0 + c + d * x0 * x0 + e * x0 * y0 + f * y0 * y0;
+        let (mut lo, mut hi) = (i128::from(v0), i128::from(v0));
+        let mut term = |t: i64| {
+            let t = i128::from(t);
+            lo += t.min(0);
+            hi += t.max(0);
+        };
+        term((2 * d * x0 + e * y0 + a) * w);
+        term((e * x0 + 2 * f * y0 + b) * h);
+        if d | e | f != 0 {
+            term(d * w * w);
+            term(e * w * h);
+            term(f * h * h);
+        }
+        u32::from(hi >= 0) << 1 | u32::from(lo < 0)
+    }
+}
+
+/// The state of one materialisation of a chain.
+struct Solver<'a> {
+    rows: Rows<'a>,
+    bounds: Vec<Bounds>,
+    /// Per conjunct, [`possible_values`].
+    tables: Vec<u64>,
+    /// Each row's first and last pixel of the chain's base (`None`: none).
+    spans: Vec<Option<(usize, usize)>>,
+    gpr: usize,
+    /// The conjunct that last emptied a row: tried first on the next.
+    killer: usize,
+    row: Vec<u64>,
+}
+
+impl Solver<'_> {
+    /// A conjunct on an area: `op(p, q)` over every value its two sign tests may take there.
+    #[inline]
+    fn conjunct(&self, j: usize, r: Area) -> Known {
+        let v = self.rows.ep.conj[j];
+        let p = self.bounds[v.a as usize].sign(r);
+        let q = if v.a == v.b {
+            0
+        } else {
+            self.bounds[v.b as usize].sign(r)
+        };
+        match self.tables[j] >> (2 * (p | q << 2)) & 0b11 {
+            0b01 => Known::False,
+            0b10 => Known::True,
+            _ => Known::Unknown,
+        }
+    }
+
+    /// AND the conjuncts of `live` (a bit each) into `plane` on area `r`.
+    fn solve(&mut self, plane: &mut [u64], r: Area, mut live: u64) {
+        let mut bits = live;
+        while bits != 0 {
+            let j = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            match self.conjunct(j, r) {
+                Known::False => return self.clear(plane, r),
+                Known::True => live &= !(1 << j),
+                Known::Unknown => {}
+            }
+        }
+        if live == 0 {
+            return;
+        }
+        let (w, h) = (r.x1 - r.x0 + 1, r.y1 - r.y0 + 1);
+        if h <= LEAF_ROWS {
+            for py in r.y0..=r.y1 {
+                let row = Area {
+                    y0: py,
+                    y1: py,
+                    ..r
+                };
+                self.solve_row(plane, row, live);
+            }
+            return;
+        }
+        // Halve the longer side, counting a column as a quarter of a row: a one-row area is
+        // solved by one row search, so rows are worth reaching sooner than columns.
+        if 4 * h >= w {
+            let ym = r.y0 + h / 2;
+            self.solve(plane, Area { y1: ym - 1, ..r }, live);
+            self.solve(plane, Area { y0: ym, ..r }, live);
+        } else {
+            let xm = r.x0 + w / 2;
+            self.solve(plane, Area { x1: xm - 1, ..r }, live);
+            self.solve(plane, Area { x0: xm, ..r }, live);
+        }
+    }
+
+    /// The smallest area inside `r` that holds every base pixel of `r`, if it has any.
+    fn trim(&self, r: Area) -> Option<Area> {
+        let mut out: Option<Area> = None;
+        for py in r.y0..=r.y1 {
+            let Some((lo, hi)) = self.spans[py] else {
+                continue;
+            };
+            let (lo, hi) = (lo.max(r.x0), hi.min(r.x1));
+            if lo > hi {
+                continue;
+            }
+            out = Some(match out {
+                None => Area {
+                    x0: lo,
+                    x1: hi,
+                    y0: py,
+                    y1: py,
+                },
+                Some(a) => Area {
+                    x0: a.x0.min(lo),
+                    x1: a.x1.max(hi),
+                    y1: py,
+                    ..a
+                },
+            });
+        }
+        out
+    }
+
+    /// Clear the area's bits.
+    fn clear(&self, plane: &mut [u64], r: Area) {
+        for py in r.y0..=r.y1 {
+            let row = &mut plane[py * self.gpr..(py + 1) * self.gpr];
+            for_span_words(r.x0, r.x1, |i, m| row[i] &= !m);
+        }
+    }
+
+    /// The conjuncts of `live` on a one-row area, exactly.
+    fn solve_row(&mut self, plane: &mut [u64], r: Area, live: u64) {
+        let py = r.y0;
+        let row = &mut plane[py * self.gpr..(py + 1) * self.gpr];
+        let m = &mut self.row;
+        m.fill(0);
+        let mut any = 0;
+        for_span_words(r.x0, r.x1, |i, w| {
+            m[i] = row[i] & w;
+            any |= m[i];
+        });
+        if any == 0 {
+            return;
+        }
+        let ep = self.rows.ep;
+        let first = if live >> self.killer & 1 != 0 {
+            self.killer
+        } else {
+            live.trailing_zeros() as usize
+        };
+        let mut rest = live & !(1 << first);
+        let mut j = first;
+        loop {
+            let v = self.rows.value(ep.conj[j], py, m);
+            let mut any = 0;
+            for (m, &v) in m.iter_mut().zip(v) {
+                *m &= v;
+                any |= *m;
+            }
+            if any == 0 {
+                self.killer = j;
+                break;
+            }
+            if rest == 0 {
+                break;
+            }
+            j = rest.trailing_zeros() as usize;
+            rest &= rest - 1;
+        }
+        let m = &self.row;
+        for_span_words(r.x0, r.x1, |i, w| row[i] = (row[i] & !w) | m[i]);
+    }
+}
+
+/// Each row's first and last set pixel of a plane.
+fn row_spans(plane: &[u64], g: Geometry) -> Vec<Option<(usize, usize)>> {
+    plane
+        .chunks_exact(g.groups_per_row)
+        .map(|row| row.iter().any(|&w| w != 0).then(|| span_of(row, g.width)))
+        .collect()
+}
+
+/// Call `f(word, mask)` for each word of a row that columns `x0 ..= x1` touch, with the mask of
+/// those columns in it.
+fn for_span_words(x0: usize, x1: usize, mut f: impl FnMut(usize, u64)) {
+    let (g0, g1) = (x0 / 64, x1 / 64);
+    for i in g0..=g1 {
+        let lo = if i == g0 { x0 % 64 } else { 0 };
+        let hi = if i == g1 { x1 % 64 } else { 63 };
+        f(i, (u64::MAX << lo) & (u64::MAX >> (63 - hi)));
     }
 }
 
