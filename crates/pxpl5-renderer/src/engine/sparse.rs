@@ -50,7 +50,9 @@ const MAX_CONJUNCTS: usize = 64;
 
 /// Areas of at most this many rows are solved row by row: below it, halving costs more bounds
 /// than the row searches it saves.
-const LEAF_ROWS: usize = 8;
+const LEAF_ROWS: usize = 4;
+const LEAF_COLUMNS: usize = 16;
+const ASPECT: usize = 2;
 
 /// A deferred sign test: W >= 0 of its expression at the origin it was issued with.
 struct SignTerm {
@@ -450,15 +452,15 @@ impl SparseEngine {
     /// the wedges its edges cut the disk into (module doc).
     fn chain_plane(&self, e: u32) -> Vec<u64> {
         let ep = self.epoch(e);
-        let mut plane = ep.base.clone();
         if ep.conj.is_empty() {
-            return plane;
+            return ep.base.clone();
         }
+        // Written only where something survives: a rectangle ruled out costs nothing.
+        let mut plane = vec![0; ep.base.len()];
         let g = self.geometry;
         let mut solver = Solver {
             rows: Rows::new(ep, g),
             bounds: ep.signs.iter().map(Bounds::of).collect(),
-            spans: row_spans(&plane, g),
             tables: ep
                 .conj
                 .iter()
@@ -469,14 +471,8 @@ impl SparseEngine {
             row: vec![0; g.groups_per_row],
         };
         let live = u64::MAX >> (64 - ep.conj.len());
-        let whole = Area {
-            x0: 0,
-            x1: g.width - 1,
-            y0: 0,
-            y1: g.height - 1,
-        };
         // Only where the base has pixels (a view's disk, say) is there anything to decide.
-        if let Some(area) = solver.trim(whole) {
+        if let Some(area) = bounding_area(&ep.base, g) {
             solver.solve(&mut plane, area, live);
         }
         plane
@@ -661,8 +657,6 @@ struct Solver<'a> {
     bounds: Vec<Bounds>,
     /// Per conjunct, [`possible_values`].
     tables: Vec<u64>,
-    /// Each row's first and last pixel of the chain's base (`None`: none).
-    spans: Vec<Option<(usize, usize)>>,
     gpr: usize,
     /// The conjunct that last emptied a row: tried first on the next.
     killer: usize,
@@ -674,13 +668,19 @@ impl Solver<'_> {
     #[inline]
     fn conjunct(&self, j: usize, r: Area) -> Known {
         let v = self.rows.ep.conj[j];
+        let table = self.tables[j];
         let p = self.bounds[v.a as usize].sign(r);
         let q = if v.a == v.b {
             0
         } else {
-            self.bounds[v.b as usize].sign(r)
+            // The second test is bounded only if the first leaves the conjunct undecided (pos
+            // OR inside, with pos true, is true whatever inside is).
+            match table >> (2 * (p | 3 << 2)) & 0b11 {
+                0b01 | 0b10 => 3,
+                _ => self.bounds[v.b as usize].sign(r),
+            }
         };
-        match self.tables[j] >> (2 * (p | q << 2)) & 0b11 {
+        match table >> (2 * (p | q << 2)) & 0b11 {
             0b01 => Known::False,
             0b10 => Known::True,
             _ => Known::Unknown,
@@ -694,16 +694,16 @@ impl Solver<'_> {
             let j = bits.trailing_zeros() as usize;
             bits &= bits - 1;
             match self.conjunct(j, r) {
-                Known::False => return self.clear(plane, r),
+                Known::False => return,
                 Known::True => live &= !(1 << j),
                 Known::Unknown => {}
             }
         }
         if live == 0 {
-            return;
+            return self.copy_base(plane, r);
         }
         let (w, h) = (r.x1 - r.x0 + 1, r.y1 - r.y0 + 1);
-        if h <= LEAF_ROWS {
+        if h <= LEAF_ROWS && w <= LEAF_COLUMNS {
             for py in r.y0..=r.y1 {
                 let row = Area {
                     y0: py,
@@ -716,7 +716,7 @@ impl Solver<'_> {
         }
         // Halve the longer side, counting a column as a quarter of a row: a one-row area is
         // solved by one row search, so rows are worth reaching sooner than columns.
-        if 4 * h >= w {
+        if h > LEAF_ROWS && (ASPECT * h >= w || w <= LEAF_COLUMNS) {
             let ym = r.y0 + h / 2;
             self.solve(plane, Area { y1: ym - 1, ..r }, live);
             self.solve(plane, Area { y0: ym, ..r }, live);
@@ -727,52 +727,24 @@ impl Solver<'_> {
         }
     }
 
-    /// The smallest area inside `r` that holds every base pixel of `r`, if it has any.
-    fn trim(&self, r: Area) -> Option<Area> {
-        let mut out: Option<Area> = None;
+    /// The base's bits of the area, every conjunct holding there.
+    fn copy_base(&self, plane: &mut [u64], r: Area) {
+        let base = &self.rows.ep.base;
         for py in r.y0..=r.y1 {
-            let Some((lo, hi)) = self.spans[py] else {
-                continue;
-            };
-            let (lo, hi) = (lo.max(r.x0), hi.min(r.x1));
-            if lo > hi {
-                continue;
-            }
-            out = Some(match out {
-                None => Area {
-                    x0: lo,
-                    x1: hi,
-                    y0: py,
-                    y1: py,
-                },
-                Some(a) => Area {
-                    x0: a.x0.min(lo),
-                    x1: a.x1.max(hi),
-                    y1: py,
-                    ..a
-                },
-            });
-        }
-        out
-    }
-
-    /// Clear the area's bits.
-    fn clear(&self, plane: &mut [u64], r: Area) {
-        for py in r.y0..=r.y1 {
-            let row = &mut plane[py * self.gpr..(py + 1) * self.gpr];
-            for_span_words(r.x0, r.x1, |i, m| row[i] &= !m);
+            let at = py * self.gpr;
+            for_span_words(r.x0, r.x1, |i, m| plane[at + i] |= base[at + i] & m);
         }
     }
 
     /// The conjuncts of `live` on a one-row area, exactly.
     fn solve_row(&mut self, plane: &mut [u64], r: Area, live: u64) {
         let py = r.y0;
-        let row = &mut plane[py * self.gpr..(py + 1) * self.gpr];
+        let base = &self.rows.ep.base[py * self.gpr..(py + 1) * self.gpr];
         let m = &mut self.row;
         m.fill(0);
         let mut any = 0;
         for_span_words(r.x0, r.x1, |i, w| {
-            m[i] = row[i] & w;
+            m[i] = base[i] & w;
             any |= m[i];
         });
         if any == 0 {
@@ -803,17 +775,28 @@ impl Solver<'_> {
             j = rest.trailing_zeros() as usize;
             rest &= rest - 1;
         }
-        let m = &self.row;
-        for_span_words(r.x0, r.x1, |i, w| row[i] = (row[i] & !w) | m[i]);
+        let row = &mut plane[py * self.gpr..(py + 1) * self.gpr];
+        for (o, &m) in row.iter_mut().zip(&self.row) {
+            *o |= m;
+        }
     }
 }
 
-/// Each row's first and last set pixel of a plane.
-fn row_spans(plane: &[u64], g: Geometry) -> Vec<Option<(usize, usize)>> {
-    plane
-        .chunks_exact(g.groups_per_row)
-        .map(|row| row.iter().any(|&w| w != 0).then(|| span_of(row, g.width)))
-        .collect()
+/// The smallest area that holds every set pixel of a plane, if it has any.
+fn bounding_area(plane: &[u64], g: Geometry) -> Option<Area> {
+    let gpr = g.groups_per_row;
+    let rows = || plane.chunks_exact(gpr).map(|r| r.iter().any(|&w| w != 0));
+    let y0 = rows().position(|any| any)?;
+    let y1 = g.height - 1 - rows().rev().position(|any| any)?;
+    // The columns: the union of the rows.
+    let mut union = vec![0u64; gpr];
+    for row in plane.chunks_exact(gpr) {
+        for (u, &w) in union.iter_mut().zip(row) {
+            *u |= w;
+        }
+    }
+    let (x0, x1) = span_of(&union, g.width);
+    Some(Area { x0, x1, y0, y1 })
 }
 
 /// Call `f(word, mask)` for each word of a row that columns `x0 ..= x1` touch, with the mask of
