@@ -34,7 +34,7 @@ fn golden(config_file: &str) -> String {
         };
         let stream = cornell_stream(&cfg, &opts, 1).expect("the stream fits every config");
         let mut first: Option<(u64, String)> = None;
-        for fidelity in [Fidelity::Bit, Fidelity::Integer] {
+        for fidelity in [Fidelity::Bit, Fidelity::Integer, Fidelity::Sparse] {
             let mut board = Board::new(&cfg.renderer, cfg.ring.word_bits, fidelity);
             let cycles = stream.run(&mut board).expect("the stream runs").0;
             let digest = board.image().digest();

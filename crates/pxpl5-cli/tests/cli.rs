@@ -320,6 +320,35 @@ fn run_outputs_are_the_same_on_any_number_of_host_threads() {
 }
 
 #[test]
+fn the_sparse_level_gives_integer_results_on_boards_run_ahead_on_threads() {
+    // The frame and every simulated figure on the seed machine's four Renderers, each on a
+    // host worker; the stats differ only in naming the level.
+    let run = |fidelity: &str, d: &std::path::Path| {
+        let out = pxpl5(&[
+            "run",
+            "--scene",
+            "programs/polygons/scenes/small.ron",
+            "--out",
+            d.to_str().unwrap(),
+            "--fidelity",
+            fidelity,
+            "--threads",
+            "2",
+        ]);
+        assert!(out.status.success(), "{}", text(&out.stderr));
+        let mut stats: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(d.join("stats.json")).unwrap()).unwrap();
+        assert_eq!(stats["fidelity"], fidelity);
+        stats["fidelity"] = serde_json::Value::Null;
+        (stats, std::fs::read(d.join("frame.png")).unwrap())
+    };
+    let (a, b) = (out_dir("sparse-level"), out_dir("sparse-integer"));
+    let (sparse, integer) = (run("sparse", &a), run("integer", &b));
+    assert!(sparse.0 == integer.0, "stats differ");
+    assert!(sparse.1 == integer.1, "frames differ");
+}
+
+#[test]
 fn fidelity_word_is_a_hidden_alias_of_integer() {
     let run = |fidelity: &str, d: &std::path::Path| {
         let out = run_small_with(d, &["--fidelity", fidelity]);

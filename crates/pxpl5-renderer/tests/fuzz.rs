@@ -172,7 +172,7 @@ fn board_config() -> impl Strategy<Value = RendererConfig> {
 }
 
 proptest! {
-    // About 1 ms a case (two boards, up to 24 commands) in the test profile.
+    // About 1 ms a case (three boards, up to 24 commands) in the test profile.
     #![proptest_config(config(5_000))]
 
     #[test]
@@ -186,15 +186,19 @@ proptest! {
         prop_assert!(pxpl5_config::validate(&machine).is_ok(), "{:?}", pxpl5_config::validate(&machine));
         let mut bit = Board::new(&cfg, 32, Fidelity::Bit).stream_readbacks(64);
         let mut integer = Board::new(&cfg, 32, Fidelity::Integer).stream_readbacks(64);
+        let mut sparse = Board::new(&cfg, 32, Fidelity::Sparse).stream_readbacks(64);
         for (i, c) in commands.iter().enumerate() {
             let (b, n) = (bit.execute(c), integer.execute(c));
             if let Err(e) = &b {
                 prop_assert!(!e.to_string().is_empty());
             }
             prop_assert_eq!(&b, &n, "command {} {:?}: the levels differ", i, c);
+            prop_assert_eq!(&n, &sparse.execute(c), "command {} {:?}: sparse differs", i, c);
         }
         prop_assert_eq!(bit.stats(), integer.stats());
+        prop_assert_eq!(integer.stats(), sparse.stats());
         prop_assert!(bit.image() == integer.image(), "the levels' states differ");
+        prop_assert!(integer.image() == sparse.image(), "the sparse level's state differs");
     }
 }
 

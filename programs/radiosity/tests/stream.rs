@@ -15,19 +15,23 @@ fn options(method: Method) -> FfOptions {
 }
 
 #[test]
-fn both_levels_agree_and_the_hemisphere_draws_the_box() {
+fn every_level_agrees_and_the_hemisphere_draws_the_box() {
     let cfg = pxpl5_config::default_config();
     let stream = cornell_stream(&cfg, &options(Method::Hemisphere), 1).unwrap();
     // The first shooter is a patch of the light, the brightest.
     assert_eq!(stream.shooters.len(), 1);
     let mut bit = Board::new(&cfg.renderer, cfg.ring.word_bits, Fidelity::Bit);
     let mut word = Board::new(&cfg.renderer, cfg.ring.word_bits, Fidelity::Integer);
+    let mut sparse = Board::new(&cfg.renderer, cfg.ring.word_bits, Fidelity::Sparse);
     let cb = stream.run(&mut bit).unwrap();
     let cw = stream.run(&mut word).unwrap();
     assert_eq!(cb, cw);
+    assert_eq!(cb, stream.run(&mut sparse).unwrap());
     assert_eq!(bit.image().digest(), word.image().digest());
+    assert_eq!(word.image().digest(), sparse.image().digest());
     let fields = ViewFields::allocate(cfg.renderer.pixel_memory_bits).unwrap();
     let ids = bit.field_values(fields.id);
+    assert_eq!(ids, sparse.field_values(fields.id));
     // From the light in the ceiling the box fills most of the disk (its front is open: that part
     // of the disk holds no patch); the corners, outside the disk, none.
     let drawn = ids.iter().filter(|&&i| i != 0).count();

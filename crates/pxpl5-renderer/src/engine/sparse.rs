@@ -4,11 +4,12 @@
 //! both); only host work differs.
 //!
 //! **Why.** A receiver's edges are drawn as sign tests into scratch flags, a Logic step combining
-//! them, and `enable := enable AND t` ([`crate::command`]). Each edge's half-space passes through
-//! the view's centre, so the enable after k edges is a wedge that spans most rows until the last
-//! edge: drawn command by command, every edge costs the whole disk, whatever the receiver covers.
-//! Yet nothing reads the enable between the edges, and the next receiver overwrites the scratch
-//! flags wherever this one wrote them.
+//! them, and `enable := enable AND t` (`crate::command`). Each edge's half-space is bounded by a
+//! plane through the eye, so its boundary crosses the whole disk from rim to rim, and the enable
+//! after k edges spans most rows until the last edge: drawn command by command, every edge costs
+//! about the whole disk (97 rows a sign test on `bench renderer`'s hemisphere stream), whatever
+//! the receiver covers (8 rows on average there). Yet nothing reads the enable between the edges,
+//! and the next receiver overwrites the scratch flags wherever this one wrote them.
 //!
 //! **How.** Enable is held as a *chain*: a plane (the `base`, a copy of what enable was set
 //! from) AND a list of conjuncts, each a boolean function of one or two sign tests, which are
@@ -27,11 +28,13 @@
 //!
 //! A layer is dropped, unevaluated, when a later layer of the same flag is written where it was:
 //! under the same chain with no more conjuncts, or under a chain whose base holds the old
-//! chain's base. Materialising enable is an AND of conjuncts, so each row takes them in any order:
-//! first the one that emptied the previous row, and a row stops at the first conjunct that empties
-//! it. Materialising a flag replays its layers in order, as the commands would have. Both are
-//! exact: each deferred value is computed from the same expressions, by the same row solver
-//! (`integer::sign_row`), at every pixel where it can be seen.
+//! chain's base. Materialising enable is an AND of conjuncts, so any order and any split of the
+//! array gives the same plane: it is solved on rectangles, halved until each conjunct is decided
+//! there by bounds on its sign tests (false: the rectangle is left empty; true: the conjunct is
+//! dropped for it), and small rectangles row by row with the conjuncts still undecided
+//! (`Solver`). Materialising a flag replays its layers in order, as the commands would have. Both
+//! are exact: a bound decides only where it holds for every pixel, and every row is solved from
+//! the same expressions by the same row solver as `integer`'s (`integer::sign_row`).
 
 use super::integer::{Hints, IntegerEngine, Unwrapped, may_wrap, sign_row};
 use super::{Geometry, PixelEngine, QeeSink, Registers, gated};
@@ -48,8 +51,10 @@ const MAX_EPOCHS: usize = 64;
 /// the solver keeps the undecided ones as bits of a u64, with one bit to spare for its order).
 const MAX_CONJUNCTS: usize = 63;
 
-/// Areas of at most this many rows are solved row by row: below it, halving costs more bounds
-/// than the row searches it saves.
+/// Areas of at most this many rows and columns are solved row by row: below them, halving costs
+/// more bounds than the row searches it saves. 4 x 16 (halving rows first while an area is less
+/// than twice as wide as high, `ASPECT`) was the best of 4 x 16, 8 x 8, 8 x 16, 8 x 32 and
+/// 16 x 16 on `bench renderer --instructions`' hemisphere stream.
 const LEAF_ROWS: usize = 4;
 const LEAF_COLUMNS: usize = 16;
 const ASPECT: usize = 2;
@@ -458,10 +463,9 @@ impl SparseEngine {
     }
 
     /// Enable at the tip of epoch e's chain. The AND of the conjuncts is taken on rectangles,
-    /// halved until decided: a conjunct bounded false on a rectangle clears it, one bounded true
-    /// there is dropped for it, and what is left on a one-row rectangle is solved row-exactly (the
-    /// conjunct that emptied the last such row first). Only a receiver's outline reaches rows, not
-    /// the wedges its edges cut the disk into (module doc).
+    /// halved until decided: a conjunct bounded false on a rectangle leaves it empty, one bounded
+    /// true there is dropped for it, and what is left on a rectangle of at most [`LEAF_ROWS`] by
+    /// [`LEAF_COLUMNS`] is solved row by row (the conjunct that emptied the last row first).
     fn chain_plane(&self, e: u32) -> Vec<u64> {
         let ep = self.epoch(e);
         if ep.conj.is_empty() {
@@ -747,8 +751,8 @@ impl Solver<'_> {
             }
             return;
         }
-        // Halve the longer side, counting a column as a quarter of a row: a one-row area is
-        // solved by one row search, so rows are worth reaching sooner than columns.
+        // Halve the rows while the area is less than ASPECT times as wide as high: a row is solved
+        // by one search whatever its width, so rows are worth reaching sooner than columns.
         if h > LEAF_ROWS && (ASPECT * h >= w || w <= LEAF_COLUMNS) {
             let ym = r.y0 + h / 2;
             self.solve(plane, Area { y1: ym - 1, ..r }, live);
