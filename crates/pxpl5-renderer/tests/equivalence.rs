@@ -249,7 +249,14 @@ fn receivers() -> impl Strategy<Value = Vec<Command>> {
         }),
         1 => command(),
     ];
-    (0u32..300, 0u32..300, prop::collection::vec(step, 1..40)).prop_map(|(x, y, mut v)| {
+    from_an_origin(prop::collection::vec(step, 1..40))
+}
+
+/// `commands` after a random region origin.
+fn from_an_origin(
+    commands: impl Strategy<Value = Vec<Command>>,
+) -> impl Strategy<Value = Vec<Command>> {
+    (0u32..300, 0u32..300, commands).prop_map(|(x, y, mut v)| {
         v.insert(0, Command::SetOrigin { x, y });
         v
     })
@@ -307,10 +314,7 @@ fn sign_tests() -> impl Strategy<Value = Vec<Command>> {
             }
         },
     );
-    (0u32..300, 0u32..300, prop::collection::vec(one, 1..12)).prop_map(|(x, y, mut v)| {
-        v.insert(0, Command::SetOrigin { x, y });
-        v
-    })
+    from_an_origin(prop::collection::vec(one, 1..12))
 }
 
 proptest! {
