@@ -214,12 +214,14 @@ impl SparseEngine {
     /// `enable := op(a, b)`.
     fn defer_enable_logic(&mut self, a: Bit, b: Bit, op: LogicOp) -> bool {
         // One input that matters (or none): enable becomes a function of one plane.
-        let (source, h): (Option<Bit>, Box<dyn Fn(bool) -> bool>) = if a == b {
-            (Some(a), Box::new(move |x| eval(op, x, x)))
+        // The function of that input, as its values at 0 and 1.
+        let of = |f: &dyn Fn(bool) -> bool| (f(false), f(true));
+        let (source, (h0, h1)) = if a == b {
+            (a, of(&|x| eval(op, x, x)))
         } else if ignores_b(op) {
-            (Some(a), Box::new(move |x| eval(op, x, false)))
+            (a, of(&|x| eval(op, x, false)))
         } else if ignores_a(op) {
-            (Some(b), Box::new(move |x| eval(op, false, x)))
+            (b, of(&|x| eval(op, false, x)))
         } else {
             // enable := enable AND f, or any op that keeps a disabled pixel disabled.
             let (flag, keeps) = match (a, b) {
@@ -248,13 +250,12 @@ impl SparseEngine {
             self.push_conjunct(e, v.then(h));
             return true;
         };
-        let (h0, h1) = (h(false), h(true));
         let base = match (source, h0, h1) {
             (_, false, false) => Base::Constant(0),
             (_, true, true) => Base::Constant(u64::MAX),
             // enable := enable: nothing changes.
-            (Some(Bit::Enable), false, true) => return true,
-            (Some(Bit::Flag(x)), false, true) => {
+            (Bit::Enable, false, true) => return true,
+            (Bit::Flag(x), false, true) => {
                 self.materialise_flag(x as usize);
                 Base::Plane(Bit::Flag(x))
             }
