@@ -218,8 +218,13 @@ fn sparse_follows_integer(cfg: &RendererConfig, commands: &[Command]) -> Result<
 fn receivers() -> impl Strategy<Value = Vec<Command>> {
     let flag = || (0u8..4).prop_map(Bit::Flag);
     let often = |usual: LogicOp| prop_oneof![3 => Just(usual), 1 => logic_op()];
-    let sign = || {
-        (expr(), window(), any::<bool>()).prop_map(|(expr, window, exact)| {
+    // Half of them linear, as a hemicube receiver's edges (the sparse level narrows the rows
+    // it solves by such half-planes).
+    let linear = (coefficient(), coefficient(), coefficient())
+        .prop_map(|(a, b, c)| QeeExpr::from_raw([a, b, c, 0, 0, 0]));
+    let edge = prop_oneof![expr(), linear];
+    let sign = move || {
+        (edge.clone(), window(), any::<bool>()).prop_map(|(expr, window, exact)| {
             let window = if exact {
                 let w = expr.sign_window((0, 0), 512, 512);
                 if w.bits <= 64 { w } else { window }
@@ -268,6 +273,15 @@ proptest! {
     #[test]
     fn sparse_follows_integer_on_receiver_streams(commands in receivers()) {
         sparse_follows_integer(&small(), &commands)?;
+    }
+
+    /// Rows of two groups, as on the seed's boards: the sparse level's buffers of known length.
+    #[test]
+    fn sparse_follows_integer_on_receiver_streams_on_two_group_rows(commands in receivers()) {
+        let mut wide = small();
+        wide.width = 128;
+        wide.height = 8;
+        sparse_follows_integer(&wide, &commands)?;
     }
 
     #[test]

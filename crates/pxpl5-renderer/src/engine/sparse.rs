@@ -28,13 +28,15 @@
 //!
 //! A layer is dropped, unevaluated, when a later layer of the same flag is written where it was:
 //! under the same chain with no more conjuncts, or under a chain whose base holds the old
-//! chain's base. Materialising enable is an AND of conjuncts, so any order and any split of the
-//! array gives the same plane: it is solved on rectangles, halved until each conjunct is decided
-//! there by bounds on its sign tests (false: the rectangle is left empty; true: the conjunct is
-//! dropped for it), and small rectangles row by row with the conjuncts still undecided
-//! (`Solver`). Materialising a flag replays its layers in order, as the commands would have. Both
-//! are exact: a bound decides only where it holds for every pixel, and every row is solved from
-//! the same expressions by the same row solver as `integer`'s (`integer::sign_row`).
+//! chain's base. Materialising enable is an AND of conjuncts, so any order gives the same
+//! plane: it is solved row by row, each row starting as the base's and ANDed with one conjunct
+//! after another, each sign test solved only on the span of pixels still enabled, until the row
+//! is empty (the conjunct that emptied the last row first). Only the rows and columns that every
+//! half-plane among the conjuncts meets are visited (a hemicube receiver's edges are such
+//! half-planes). Materialising a flag replays its layers in order, as the commands would have.
+//! Both are exact: a row or column is left out only where a half-plane's conjunct is false at
+//! every pixel of it, and every row is solved from the same expressions by the same row solver
+//! as `integer`'s (`integer::sign_row`).
 
 use super::integer::{Hints, IntegerEngine, Unwrapped, may_wrap, sign_row};
 use super::{Geometry, PixelEngine, QeeSink, Registers, gated};
@@ -50,14 +52,6 @@ const MAX_EPOCHS: usize = 64;
 /// Most conjuncts in one chain before enable is materialised (the program's polygons have a few;
 /// the solver keeps the undecided ones as bits of a u64, with one bit to spare for its order).
 const MAX_CONJUNCTS: usize = 63;
-
-/// Areas of at most this many rows and columns are solved row by row: below them, halving costs
-/// more bounds than the row searches it saves. 4 x 16 (halving rows first while an area is less
-/// than twice as wide as high, `ASPECT`) was the best of 4 x 16, 8 x 8, 8 x 16, 8 x 32 and
-/// 16 x 16 on `bench renderer --instructions`' hemisphere stream.
-const LEAF_ROWS: usize = 4;
-const LEAF_COLUMNS: usize = 16;
-const ASPECT: usize = 2;
 
 /// A deferred sign test: W >= 0 of its expression at the origin it was issued with.
 struct SignTerm {
@@ -463,35 +457,56 @@ impl SparseEngine {
         }
     }
 
-    /// Enable at the tip of epoch e's chain. The AND of the conjuncts is taken on rectangles,
-    /// halved until decided: a conjunct bounded false on a rectangle leaves it empty, one bounded
-    /// true there is dropped for it, and what is left on a rectangle of at most [`LEAF_ROWS`] by
-    /// [`LEAF_COLUMNS`] is solved row by row (the conjunct that emptied the last row first).
+    /// Enable at the tip of epoch e's chain, solved row by row over the base's bounding area:
+    /// each row starts as the base's and is ANDed with one conjunct after another, each sign
+    /// test solved only on the span of pixels still enabled, until the row is empty (the
+    /// conjunct that emptied the last row first: a polygon's rows above and below it die at the
+    /// same edge).
     fn chain_plane(&self, e: u32) -> Vec<u64> {
         let ep = self.epoch(e);
         if ep.conj.is_empty() {
             return ep.base.clone();
         }
-        // Written only where something survives: a rectangle ruled out costs nothing.
-        let mut plane = vec![0; ep.base.len()];
         let g = self.geometry;
-        let mut solver = Solver {
-            rows: Rows::new(ep, g),
-            bounds: ep.signs.iter().map(Bounds::of).collect(),
-            tables: ep
-                .conj
-                .iter()
-                .map(|&v| u64::from(possible_values(v)))
-                .collect(),
-            gpr: g.groups_per_row,
-            killer: 0,
-            ruled_out: 0,
-            row: vec![0; g.groups_per_row],
+        let mut plane = vec![0; ep.base.len()];
+        let Some(mut steps) = ep
+            .conj
+            .iter()
+            .map(|&v| Step::of(v, &ep.signs))
+            .collect::<Option<Vec<Step>>>()
+        else {
+            // A conjunct false everywhere.
+            return plane;
         };
-        let live = u64::MAX >> (64 - ep.conj.len());
-        // Only where the base has pixels (a view's disk, say) is there anything to decide.
-        if let Some(area) = bounding_area(&ep.base, g) {
-            solver.solve(&mut plane, area, live);
+        // Conjuncts true everywhere need no row.
+        steps.retain(|s| s.op != LogicOp::ONE);
+        let Some(area) = bounding_area(&ep.base, g) else {
+            return plane;
+        };
+        // The half-planes outside which a conjunct is false (a hemicube receiver's edges):
+        // narrowing the area by each in turn, twice over, brings it near the polygon's box.
+        let half_planes: Vec<[i64; 3]> = steps
+            .iter()
+            .filter_map(|s| s.half_plane(&ep.signs))
+            .collect();
+        let Some(area) = half_planes
+            .iter()
+            .chain(&half_planes)
+            .try_fold(area, |area, &h| narrow(h, area))
+        else {
+            return plane;
+        };
+        // The seed's 128-pixel row is two groups: buffers whose length the compiler knows are
+        // cleared by two stores where a slice's `fill` is a `memset` call.
+        match g.groups_per_row {
+            2 => and_rows(ep, &steps, area, &mut plane, Rows::new(ep, g, [0u64; 2])),
+            n => and_rows(
+                ep,
+                &steps,
+                area,
+                &mut plane,
+                Rows::new(ep, g, vec![0u64; n]),
+            ),
         }
         plane
     }
@@ -506,7 +521,7 @@ impl SparseEngine {
         // Each epoch's layers are consecutive, their k ascending.
         for run in layers.chunk_by(|a, b| a.epoch == b.epoch) {
             let ep = self.epoch(run[0].epoch);
-            let mut rows = Rows::new(ep, g);
+            let mut rows = Rows::new(ep, g, vec![0u64; gpr]);
             for (py, out) in plane.chunks_exact_mut(gpr).enumerate() {
                 gate.copy_from_slice(&ep.base[py * gpr..py * gpr + gpr]);
                 let mut applied = 0;
@@ -534,23 +549,23 @@ impl SparseEngine {
 }
 
 /// Row evaluation of one epoch's values: each sign test keeps its row solver's hints, and two
-/// row buffers hold the sign bits.
-struct Rows<'a> {
+/// row buffers (`B`: one u64 per group of a row) hold the sign bits.
+struct Rows<'a, B> {
     ep: &'a Epoch,
     width: usize,
     hints: Vec<Hints>,
-    a: Vec<u64>,
-    b: Vec<u64>,
+    a: B,
+    b: B,
 }
 
-impl<'a> Rows<'a> {
-    fn new(ep: &'a Epoch, g: Geometry) -> Rows<'a> {
+impl<'a, B: AsMut<[u64]> + AsRef<[u64]> + Clone> Rows<'a, B> {
+    fn new(ep: &'a Epoch, g: Geometry, buffer: B) -> Rows<'a, B> {
         Rows {
             ep,
             width: g.width,
             hints: vec![Hints::new(g.width); ep.signs.len()],
-            a: vec![0; g.groups_per_row],
-            b: vec![0; g.groups_per_row],
+            a: buffer.clone(),
+            b: buffer,
         }
     }
 
@@ -558,28 +573,183 @@ impl<'a> Rows<'a> {
     fn value(&mut self, v: Value, py: usize, mask: &[u64]) -> &[u64] {
         let span = span_of(mask, self.width);
         self.sign(v.a, py, span, true);
+        let a = self.a.as_mut();
         if v.a != v.b {
             self.sign(v.b, py, span, false);
-            for (x, &y) in self.a.iter_mut().zip(&self.b) {
+            let a = self.a.as_mut();
+            for (x, &y) in a.iter_mut().zip(self.b.as_ref()) {
                 *x = v.op.apply(*x, y);
             }
         } else {
-            for x in self.a.iter_mut() {
+            for x in a.iter_mut() {
                 *x = v.op.apply(*x, *x);
             }
         }
-        &self.a
+        self.a.as_ref()
     }
 
+    /// The sign bits of test `s` on row `py`, exact on `span`, into buffer a or b.
+    #[inline(always)]
     fn sign(&mut self, s: u32, py: usize, span: (usize, usize), into_a: bool) {
         let t = &self.ep.signs[s as usize];
         let out = if into_a { &mut self.a } else { &mut self.b };
         let hints = &mut self.hints[s as usize];
         let row = t.streams.row_fn(py);
         if t.checks {
-            sign_row::<true>(row, (t.window, t.range), span, out, hints);
+            sign_row::<true>(row, (t.window, t.range), span, out.as_mut(), hints);
         } else {
-            sign_row::<false>(row, (t.window, t.range), span, out, hints);
+            sign_row::<false>(row, (t.window, t.range), span, out.as_mut(), hints);
+        }
+    }
+
+    /// `mask AND step` on row `py`, in place; whether any pixel is left.
+    #[inline(always)]
+    fn and_step(&mut self, step: Step, py: usize, mask: &mut [u64]) -> bool {
+        self.sign(step.first, py, span_of(mask, self.width), true);
+        // Where the result still depends on the second test: the pixels whose first sign is one
+        // for which `op(sign, .)` is not constant. Elsewhere its bits are never read.
+        let (dep0, dep1) = step.depends;
+        let mut undecided = 0;
+        let b = self.b.as_mut();
+        for ((u, &m), &p) in b.iter_mut().zip(&*mask).zip(self.a.as_ref()) {
+            *u = m & ((p & dep1) | (!p & dep0));
+            undecided |= *u;
+        }
+        // `b` holds the undecided pixels until the second test's bits replace them.
+        if undecided != 0 {
+            let span = span_of(b, self.width);
+            self.sign(step.second, py, span, false);
+        }
+        let mut any = 0;
+        for ((m, &p), &q) in mask.iter_mut().zip(self.a.as_ref()).zip(self.b.as_ref()) {
+            *m &= step.op.apply(p, q);
+            any |= *m;
+        }
+        any != 0
+    }
+}
+
+/// A conjunct as the row solver takes it: `op(sign first, sign second)`, the first test the
+/// cheaper (linear along a row) where the conjunct has two, and the second solved only where
+/// the first leaves the result undecided.
+#[derive(Clone, Copy)]
+struct Step {
+    first: u32,
+    second: u32,
+    op: LogicOp,
+    /// All-ones where `op(0, .)`, and `op(1, .)`, depends on the second input.
+    depends: (u64, u64),
+}
+
+impl Step {
+    /// The step of conjunct `v`; `None` if it is false at every pixel (a step whose op is
+    /// [`LogicOp::ONE`] is true at every pixel).
+    fn of(v: Value, signs: &[SignTerm]) -> Option<Step> {
+        let (mut first, mut second, mut op) = (v.a, v.b, v.op);
+        if v.a == v.b || ignores_b(op) {
+            // A function of the first test alone.
+            op = table(|p, _| eval(v.op, p, if v.a == v.b { p } else { false }));
+            second = first;
+        } else {
+            let linear = |s: u32| signs[s as usize].streams.expr.d == 0;
+            if ignores_a(op) || (linear(second) && !linear(first)) {
+                std::mem::swap(&mut first, &mut second);
+                op = table(|p, q| eval(v.op, q, p));
+            }
+        }
+        if op == LogicOp::ZERO {
+            return None;
+        }
+        let all = |b: bool| if b { u64::MAX } else { 0 };
+        let depends = (
+            all(eval(op, false, false) != eval(op, false, true)),
+            all(eval(op, true, false) != eval(op, true, true)),
+        );
+        Some(Step {
+            first,
+            second,
+            op,
+            depends,
+        })
+    }
+}
+
+impl Step {
+    /// The half-plane `k0 + kx px + ky py >= 0` (at board pixel (px, py)) outside which this
+    /// step is false, if it holds only where its first test, linear in both coordinates and
+    /// unwrapped on the board, has one sign. Exact in i64: k0 and every partial sum taken with
+    /// it (`narrow`) are sums of the terms `QeeExpr::bound` adds for the board, which the
+    /// window's unwrapped range holds.
+    fn half_plane(&self, signs: &[SignTerm]) -> Option<[i64; 3]> {
+        let t = &signs[self.first as usize];
+        let e = &t.streams.expr;
+        let positive = self.depends.0 == 0 && !eval(self.op, false, true);
+        let negative = self.depends.1 == 0 && !eval(self.op, true, true);
+        if t.checks || e.is_quadratic() || !(positive || negative) {
+            return None;
+        }
+        let k0 = e.a * t.streams.origin_x + e.b * t.streams.origin_y + e.c;
+        // W >= 0 where V >= 0; W < 0 where -V - 1 >= 0.
+        Some(if positive {
+            [k0, e.a, e.b]
+        } else {
+            [-k0 - 1, -e.a, -e.b]
+        })
+    }
+}
+
+/// `area` narrowed to the rows, then the columns, where half-plane `k0 + kx px + ky py >= 0`
+/// meets it; `None` where it misses.
+fn narrow([k0, kx, ky]: [i64; 3], area: Area) -> Option<Area> {
+    // Where `c + k t >= 0` for some t in `lo ..= hi`: `c` is the half-plane's largest value at
+    // coordinate 0 of this axis over the other axis's range.
+    let half_line = |c: i64, k: i64, lo: usize, hi: usize| -> Option<(usize, usize)> {
+        let (mut lo, mut hi) = (lo as i64, hi as i64);
+        match k.signum() {
+            // t >= ceil(-c / k).
+            1 => lo = lo.max(-(c.div_euclid(k))),
+            // t <= floor(c / -k).
+            -1 => hi = hi.min(c.div_euclid(-k)),
+            _ if c < 0 => return None,
+            _ => {}
+        }
+        (lo <= hi).then_some((lo as usize, hi as usize))
+    };
+    let largest = |k: i64, lo: usize, hi: usize| (k * lo as i64).max(k * hi as i64);
+    let (y0, y1) = half_line(k0 + largest(kx, area.x0, area.x1), ky, area.y0, area.y1)?;
+    let (x0, x1) = half_line(k0 + largest(ky, y0, y1), kx, area.x0, area.x1)?;
+    Some(Area { x0, x1, y0, y1 })
+}
+
+/// The chain's AND on every row of `area` into `plane` (zero there).
+#[inline(always)]
+fn and_rows<B: AsMut<[u64]> + AsRef<[u64]> + Clone>(
+    ep: &Epoch,
+    steps: &[Step],
+    area: Area,
+    plane: &mut [u64],
+    mut rows: Rows<B>,
+) {
+    let mut mask = rows.a.clone();
+    let gpr = mask.as_ref().len();
+    let mut killer = 0;
+    for py in area.y0..=area.y1 {
+        let at = py * gpr;
+        let mask = mask.as_mut();
+        mask.fill(0);
+        for_span_words(area.x0, area.x1, |i, m| mask[i] = ep.base[at + i] & m);
+        if mask.iter().all(|&w| w == 0) {
+            continue;
+        }
+        let alive = (killer..steps.len()).chain(0..killer).all(|j| {
+            let alive = rows.and_step(steps[j], py, mask);
+            if !alive {
+                killer = j;
+            }
+            alive
+        });
+        if alive {
+            plane[at..at + gpr].copy_from_slice(mask);
         }
     }
 }
@@ -591,233 +761,6 @@ struct Area {
     x1: usize,
     y0: usize,
     y1: usize,
-}
-
-/// What a conjunct is on an area, as far as bounds tell.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Known {
-    True,
-    False,
-    Unknown,
-}
-
-/// The values a sign test may take on an area, as a mask: bit 0 false, bit 1 true.
-const MAY_BE_FALSE: u32 = 0b01;
-const MAY_BE_TRUE: u32 = 0b10;
-
-/// For each pair of masks `p | q << 2`, the mask of values `op(p, q)` may take, two bits an
-/// entry (for a value of one sign test, q is ignored).
-fn possible_values(v: Value) -> u32 {
-    let mut table = 0;
-    for p in 1..4u32 {
-        for q in 0..4u32 {
-            let mut out = 0;
-            for x in (0..2).filter(|x| p >> x & 1 != 0) {
-                let ys: &[u32] = if v.a == v.b { &[x] } else { &[0, 1] };
-                for &y in ys.iter().filter(|&&y| v.a == v.b || q >> y & 1 != 0) {
-                    out |= 1 << u32::from(eval(v.op, x == 1, y == 1));
-                }
-            }
-            table |= out << (2 * (p | q << 2));
-        }
-    }
-    table
-}
-
-/// A sign test's expression and origin, for bounds on an area; `None` for a test whose window
-/// may wrap (its sign is then not V's, and only rows decide). In i64: the config's bound on the
-/// QEE tree (`coefficient bits + 2 coordinate bits + 3 <= 64`) keeps each term under 2^60, so any
-/// sum of the six terms' bounds fits.
-struct Bounds(Option<([i64; 6], (i64, i64))>);
-
-impl Bounds {
-    fn of(t: &SignTerm) -> Bounds {
-        let e = &t.streams.expr;
-        let origin = (t.streams.origin_x, t.streams.origin_y);
-        Bounds((!t.checks).then_some(([e.a, e.b, e.c, e.d, e.e, e.f], origin)))
-    }
-
-    /// W >= 0 on the area. V is expanded about the area's first pixel (x0, y0): with
-    /// dx in 0 ..= W and dy in 0 ..= H,
-    /// `V = V0 + gx dx + gy dy + D dx^2 + E dx dy + F dy^2`, `gx = 2 D x0 + E y0 + A`,
-    /// `gy = E x0 + 2 F y0 + B`, and each term's interval is from 0 to its value at (W, H). About
-    /// the area rather than the address origin, the terms do not cancel, so the bounds stay tight.
-    /// Each product is under 2^62 by the config's bound on the tree; the sums are in i128. W >= 0
-    /// exactly where V >= 0 when the window cannot wrap (floor(V / 2^shift) keeps V's sign).
-    #[inline]
-    fn sign(&self, r: Area) -> u32 {
-        let Some(([a, b, c, d, e, f], (ox, oy))) = self.0 else {
-            return MAY_BE_FALSE | MAY_BE_TRUE;
-        };
-        let (x0, y0) = (ox + r.x0 as i64, oy + r.y0 as i64);
-        let (w, h) = ((r.x1 - r.x0) as i64, (r.y1 - r.y0) as i64);
-        let v0 = a * x0 + b * y0 + c + d * x0 * x0 + e * x0 * y0 + f * y0 * y0;
-        if d | e | f == 0 {
-            // Linear: exact at the corners, each term under 2^60, so i64 holds the sums.
-            let (gx, gy) = (a * w, b * h);
-            let lo = v0 + gx.min(0) + gy.min(0);
-            let hi = v0 + gx.max(0) + gy.max(0);
-            return u32::from(hi >= 0) << 1 | u32::from(lo < 0);
-        }
-        let (mut lo, mut hi) = (i128::from(v0), i128::from(v0));
-        let mut term = |t: i64| {
-            let t = i128::from(t);
-            lo += t.min(0);
-            hi += t.max(0);
-        };
-        term((2 * d * x0 + e * y0 + a) * w);
-        term((e * x0 + 2 * f * y0 + b) * h);
-        term(d * w * w);
-        term(e * w * h);
-        term(f * h * h);
-        u32::from(hi >= 0) << 1 | u32::from(lo < 0)
-    }
-}
-
-/// The state of one materialisation of a chain.
-struct Solver<'a> {
-    rows: Rows<'a>,
-    bounds: Vec<Bounds>,
-    /// Per conjunct, [`possible_values`].
-    tables: Vec<u64>,
-    gpr: usize,
-    /// The conjunct that last emptied a row: tried first on the next.
-    killer: usize,
-    /// The conjunct that last ruled out an area: bounded first on the next.
-    ruled_out: usize,
-    row: Vec<u64>,
-}
-
-impl Solver<'_> {
-    /// A conjunct on an area: `op(p, q)` over every value its two sign tests may take there.
-    #[inline]
-    fn conjunct(&self, j: usize, r: Area) -> Known {
-        let v = self.rows.ep.conj[j];
-        let table = self.tables[j];
-        let p = self.bounds[v.a as usize].sign(r);
-        let q = if v.a == v.b {
-            0
-        } else {
-            // The second test is bounded only if the first leaves the conjunct undecided (pos
-            // OR inside, with pos true, is true whatever inside is).
-            match table >> (2 * (p | 3 << 2)) & 0b11 {
-                0b01 | 0b10 => 3,
-                _ => self.bounds[v.b as usize].sign(r),
-            }
-        };
-        match table >> (2 * (p | q << 2)) & 0b11 {
-            0b01 => Known::False,
-            0b10 => Known::True,
-            _ => Known::Unknown,
-        }
-    }
-
-    /// AND the conjuncts of `live` (a bit each) into `plane` on area `r`.
-    fn solve(&mut self, plane: &mut [u64], r: Area, mut live: u64) {
-        // The conjunct that last ruled out an area first: neighbours share it.
-        let first = self.ruled_out;
-        // Bit 0 stands for `first`, bit j + 1 for conjunct j.
-        let mut bits = live;
-        if live >> first & 1 != 0 {
-            bits &= !(1 << first);
-            bits = (bits << 1) | 1;
-        } else {
-            bits <<= 1;
-        }
-        while bits != 0 {
-            let slot = bits.trailing_zeros() as usize;
-            bits &= bits - 1;
-            let j = if slot == 0 { first } else { slot - 1 };
-            match self.conjunct(j, r) {
-                Known::False => {
-                    self.ruled_out = j;
-                    return;
-                }
-                Known::True => live &= !(1 << j),
-                Known::Unknown => {}
-            }
-        }
-        if live == 0 {
-            return self.copy_base(plane, r);
-        }
-        let (w, h) = (r.x1 - r.x0 + 1, r.y1 - r.y0 + 1);
-        if h <= LEAF_ROWS && w <= LEAF_COLUMNS {
-            for py in r.y0..=r.y1 {
-                let row = Area {
-                    y0: py,
-                    y1: py,
-                    ..r
-                };
-                self.solve_row(plane, row, live);
-            }
-            return;
-        }
-        // Halve the rows while the area is less than ASPECT times as wide as high: a row is solved
-        // by one search whatever its width, so rows are worth reaching sooner than columns.
-        if h > LEAF_ROWS && (ASPECT * h >= w || w <= LEAF_COLUMNS) {
-            let ym = r.y0 + h / 2;
-            self.solve(plane, Area { y1: ym - 1, ..r }, live);
-            self.solve(plane, Area { y0: ym, ..r }, live);
-        } else {
-            let xm = r.x0 + w / 2;
-            self.solve(plane, Area { x1: xm - 1, ..r }, live);
-            self.solve(plane, Area { x0: xm, ..r }, live);
-        }
-    }
-
-    /// The base's bits of the area, every conjunct holding there.
-    fn copy_base(&self, plane: &mut [u64], r: Area) {
-        let base = &self.rows.ep.base;
-        for py in r.y0..=r.y1 {
-            let at = py * self.gpr;
-            for_span_words(r.x0, r.x1, |i, m| plane[at + i] |= base[at + i] & m);
-        }
-    }
-
-    /// The conjuncts of `live` on a one-row area, exactly.
-    fn solve_row(&mut self, plane: &mut [u64], r: Area, live: u64) {
-        let py = r.y0;
-        let base = &self.rows.ep.base[py * self.gpr..(py + 1) * self.gpr];
-        let m = &mut self.row;
-        m.fill(0);
-        let mut any = 0;
-        for_span_words(r.x0, r.x1, |i, w| {
-            m[i] = base[i] & w;
-            any |= m[i];
-        });
-        if any == 0 {
-            return;
-        }
-        let ep = self.rows.ep;
-        let first = if live >> self.killer & 1 != 0 {
-            self.killer
-        } else {
-            live.trailing_zeros() as usize
-        };
-        let mut rest = live & !(1 << first);
-        let mut j = first;
-        loop {
-            let v = self.rows.value(ep.conj[j], py, m);
-            let mut any = 0;
-            for (m, &v) in m.iter_mut().zip(v) {
-                *m &= v;
-                any |= *m;
-            }
-            if any == 0 {
-                self.killer = j;
-                break;
-            }
-            if rest == 0 {
-                break;
-            }
-            j = rest.trailing_zeros() as usize;
-            rest &= rest - 1;
-        }
-        let row = &mut plane[py * self.gpr..(py + 1) * self.gpr];
-        for (o, &m) in row.iter_mut().zip(&self.row) {
-            *o |= m;
-        }
-    }
 }
 
 /// The smallest area that holds every set pixel of a plane, if it has any.
