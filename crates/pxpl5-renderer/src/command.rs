@@ -72,21 +72,38 @@ impl LogicOp {
     /// The function applied to 64 pixels at once.
     #[inline]
     pub fn apply(self, a: u64, b: u64) -> u64 {
-        // The truth table in algebraic normal form, f = c0 ^ c1 b ^ c2 a ^ c3 a b over GF(2)
-        // (c0 = t0, c1 = t0 ^ t1, c2 = t0 ^ t2, c3 = t0 ^ t1 ^ t2 ^ t3), each coefficient an
-        // all-ones or all-zeros mask: no branch, and seven operations where the sum of minterms
-        // took thirteen, so a loop over groups with a fixed op runs straight through.
+        self.anf().apply(a, b)
+    }
+
+    /// The truth table in algebraic normal form, f = c0 ^ c1 b ^ c2 a ^ c3 a b over GF(2)
+    /// (c0 = t0, c1 = t0 ^ t1, c2 = t0 ^ t2, c3 = t0 ^ t1 ^ t2 ^ t3), each coefficient an
+    /// all-ones or all-zeros mask: no branch, and seven operations where the sum of minterms
+    /// took thirteen, so a loop over groups with a fixed op runs straight through.
+    #[inline]
+    pub fn anf(self) -> Anf {
         let t = |k: u8| u64::from((self.0 >> k) & 1);
         let m = |bit: u64| 0u64.wrapping_sub(bit);
         let (t0, t1, t2, t3) = (t(0), t(1), t(2), t(3));
-        let (c0, c1, c2, c3) = (m(t0), m(t0 ^ t1), m(t0 ^ t2), m(t0 ^ t1 ^ t2 ^ t3));
-        c0 ^ (c1 & b) ^ (c2 & a) ^ (c3 & a & b)
+        Anf([m(t0), m(t0 ^ t1), m(t0 ^ t2), m(t0 ^ t1 ^ t2 ^ t3)])
     }
 
     /// Whether the result is 0 whenever a is 0: a combine op with this property leaves a pixel
     /// whose old value is 0 at 0, which lets the engines skip such pixels.
     pub fn keeps_zero(self) -> bool {
         self.0 & 0b0011 == 0
+    }
+}
+
+/// A [`LogicOp`] in algebraic normal form ([`LogicOp::anf`]): for a caller that applies one op
+/// to many words across calls, so the form is found once.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Anf([u64; 4]);
+
+impl Anf {
+    #[inline]
+    pub fn apply(self, a: u64, b: u64) -> u64 {
+        let [c0, c1, c2, c3] = self.0;
+        c0 ^ (c1 & b) ^ (c2 & a) ^ (c3 & a & b)
     }
 }
 

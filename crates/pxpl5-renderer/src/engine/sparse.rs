@@ -40,7 +40,7 @@
 
 use super::integer::{Hints, IntegerEngine, Unwrapped, may_wrap, sign_row};
 use super::{Geometry, PixelEngine, QeeSink, Registers, gated};
-use crate::command::{Bit, Cmp, Command, Field, LogicOp, Rect};
+use crate::command::{Anf, Bit, Cmp, Command, Field, LogicOp, Rect};
 use crate::qee::{Streams, Window};
 
 /// Most layers one flag holds before it is materialised, and most epochs alive before every flag
@@ -604,7 +604,8 @@ impl<'a, B: AsMut<[u64]> + AsRef<[u64]> + Clone> Rows<'a, B> {
 
     /// `mask AND step` on row `py`, in place; whether any pixel is left.
     #[inline(always)]
-    fn and_step(&mut self, step: Step, py: usize, mask: &mut [u64]) -> bool {
+    fn and_step(&mut self, step: &Step, py: usize, mask: &mut B) -> bool {
+        let mask = mask.as_mut();
         self.sign(step.first, py, span_of(mask, self.width), true);
         // Where the result still depends on the second test: the pixels whose first sign is one
         // for which `op(sign, .)` is not constant. Elsewhere its bits are never read.
@@ -622,7 +623,7 @@ impl<'a, B: AsMut<[u64]> + AsRef<[u64]> + Clone> Rows<'a, B> {
         }
         let mut any = 0;
         for ((m, &p), &q) in mask.iter_mut().zip(self.a.as_ref()).zip(self.b.as_ref()) {
-            *m &= step.op.apply(p, q);
+            *m &= step.anf.apply(p, q);
             any |= *m;
         }
         any != 0
@@ -637,6 +638,8 @@ struct Step {
     first: u32,
     second: u32,
     op: LogicOp,
+    /// The op as applied to a row, once per step rather than per row.
+    anf: Anf,
     /// All-ones where `op(0, .)`, and `op(1, .)`, depends on the second input.
     depends: (u64, u64),
 }
@@ -669,6 +672,7 @@ impl Step {
             first,
             second,
             op,
+            anf: op.anf(),
             depends,
         })
     }
@@ -735,21 +739,24 @@ fn and_rows<B: AsMut<[u64]> + AsRef<[u64]> + Clone>(
     let mut killer = 0;
     for py in area.y0..=area.y1 {
         let at = py * gpr;
-        let mask = mask.as_mut();
-        mask.fill(0);
-        for_span_words(area.x0, area.x1, |i, m| mask[i] = ep.base[at + i] & m);
-        if mask.iter().all(|&w| w == 0) {
+        let words = mask.as_mut();
+        words.fill(0);
+        for_span_words(area.x0, area.x1, |i, m| words[i] = ep.base[at + i] & m);
+        if words.iter().all(|&w| w == 0) {
             continue;
         }
-        let alive = (killer..steps.len()).chain(0..killer).all(|j| {
-            let alive = rows.and_step(steps[j], py, mask);
+        // The steps from the killer on, round to the one before it.
+        let mut j = killer;
+        let alive = (0..steps.len()).all(|_| {
+            let alive = rows.and_step(&steps[j], py, &mut mask);
             if !alive {
                 killer = j;
             }
+            j = if j + 1 == steps.len() { 0 } else { j + 1 };
             alive
         });
         if alive {
-            plane[at..at + gpr].copy_from_slice(mask);
+            plane[at..at + gpr].copy_from_slice(mask.as_ref());
         }
     }
 }
