@@ -747,14 +747,15 @@ fn and_rows<B: AsMut<[u64]> + AsRef<[u64]> + Clone>(
         }
         // The steps from the killer on, round to the one before it.
         let mut j = killer;
-        let alive = (0..steps.len()).all(|_| {
-            let alive = rows.and_step(&steps[j], py, &mut mask);
-            if !alive {
+        let mut alive = true;
+        for _ in 0..steps.len() {
+            if !rows.and_step(&steps[j], py, &mut mask) {
                 killer = j;
+                alive = false;
+                break;
             }
             j = if j + 1 == steps.len() { 0 } else { j + 1 };
-            alive
-        });
+        }
         if alive {
             plane[at..at + gpr].copy_from_slice(mask.as_ref());
         }
