@@ -1,7 +1,7 @@
 //! Cycle-count goldens, one file per case in `tests/snapshots/`:
 //! - the Renderer: the benchmark's stream (the radiosity program's commands for the first
 //!   Cornell-box shot, hemisphere and hemicube, `pxpl5_radiosity::stream`) on every shipped
-//!   machine config, at both fidelity levels; each golden records the Renderer cycles, the
+//!   machine config, at every exact fidelity level; each golden records the Renderer cycles, the
 //!   per-kind command counts and cycles, and the digest of the board's final state;
 //! - the machine (`machine_goldens!`, every program on every shipped config): the polygon program
 //!   on `programs/polygons/scenes/small.ron`, and three shots of the Cornell box (patches of

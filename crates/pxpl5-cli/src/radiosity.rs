@@ -122,7 +122,7 @@ pub struct RadiosityArgs {
     /// Renderer fidelity level: bit, integer or sparse (exact, identical results and cycles), or timing
     /// (approximate: no pixel work, form factors from the exact formula on the host; only for a
     /// scene where no surface hides another).
-    #[arg(long, value_enum, default_value_t = FidelityArg::Integer)]
+    #[arg(long, value_enum, default_value_t = FidelityArg::Sparse)]
     pub fidelity: FidelityArg,
     /// Ring level: token (exact: tokens travel hop by hop) or message (approximate: no token
     /// travel, latency and bandwidth per message).

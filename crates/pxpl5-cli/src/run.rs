@@ -60,7 +60,7 @@ pub struct RunArgs {
     pub traces: TraceArgs,
     /// Renderer fidelity level: bit, integer or sparse (identical results and cycles). The approximate
     /// timing level draws no pixels, so it cannot make this program's picture: radiosity only.
-    #[arg(long, value_enum, default_value_t = FidelityArg::Integer)]
+    #[arg(long, value_enum, default_value_t = FidelityArg::Sparse)]
     pub fidelity: FidelityArg,
     /// Ring level: token (exact: tokens travel hop by hop) or message (approximate: no token
     /// travel, latency and bandwidth per message).

@@ -1,10 +1,11 @@
 //! `pxpl5 tradeoff`: what simulation speed costs in accuracy. One workload (by default the main
 //! job: the empty Cornell box on the seed's machine, both methods, each until every surface is
 //! within 1 % of the exact solution) runs at every fidelity level and algorithm knob in
-//! [`KNOBS`]: the Renderer's exact levels (`integer`, the reference, and `bit`) and its
-//! approximate `timing` level, the ring's approximate `message` level, lower view resolutions,
-//! fewer QEE fraction bits, the hemisphere's exact depth, looser accuracy targets. Each row gives
-//! the host seconds it took (the simulating thread's CPU time) and its errors:
+//! [`KNOBS`]: the Renderer's exact levels (`sparse`, the default and the reference, `integer`
+//! and `bit`) and its approximate `timing` level, the ring's approximate `message` level, lower
+//! view resolutions, fewer QEE fraction bits, the hemisphere's exact depth, looser accuracy
+//! targets. Each row gives the host seconds it took (the simulating thread's CPU time) and its
+//! errors:
 //!
 //! - **time error**: the relative error of the simulated time to the target (and, beside it, of
 //!   the time per shot) against the reference knob's, same method: what a user who took this
@@ -51,7 +52,8 @@ const fn knob(name: &'static str, sets: &'static [(&'static str, &'static str)])
 
 /// Every knob of the study; the first is the reference every error is measured against.
 pub const KNOBS: &[Knob] = &[
-    knob("integer (reference)", &[]),
+    knob("sparse (reference)", &[]),
+    knob("integer", &[("program.fidelity", "integer")]),
     knob("bit", &[("program.fidelity", "bit")]),
     knob("timing", &[("program.fidelity", "timing")]),
     knob("message ring", &[("program.ring_level", "message")]),
@@ -368,7 +370,7 @@ fn table_text(rows: &[Row], config: &str, target: f64) -> String {
     let mut t = format!(
         "Speed against accuracy on {config}: every knob on the same workload (both methods, each \
          until every surface is within {}, unless the knob sets its own target)\ntime error: \
-         simulated time to the target against the reference knob's (integer, token ring); \
+         simulated time to the target against the reference knob's (sparse, token ring); \
          radiosity error: worst surface against the exact solution; host s: CPU seconds; \
          * = Pareto-optimal for its method\n\n",
         pct(Some(target))

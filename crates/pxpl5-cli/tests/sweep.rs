@@ -417,7 +417,7 @@ fn tradeoff_errors_match_a_direct_comparison() {
     };
     let reference = direct(&[], "reference");
     let levels: [(&str, &[&str]); 4] = [
-        ("integer (reference)", &[]),
+        ("sparse (reference)", &[]),
         ("timing", &["--fidelity", "timing"]),
         ("message ring", &["--ring-level", "message"]),
         (

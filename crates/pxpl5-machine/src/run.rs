@@ -34,7 +34,7 @@ pub struct RunOptions {
 impl Default for RunOptions {
     fn default() -> RunOptions {
         RunOptions {
-            fidelity: Fidelity::Integer,
+            fidelity: Fidelity::Sparse,
             ring_level: RingLevel::Token,
             // 10 simulated seconds: far beyond any shipped program's run.
             max_time: Tick(10_000_000_000_000),

@@ -82,7 +82,7 @@ fn run(cfg: &MachineConfig, p: &dyn Program) -> Result<RunResult, RunError> {
     run_with(
         cfg,
         p,
-        Fidelity::Integer,
+        RunOptions::default().fidelity,
         RunOptions::default().max_time,
         Recorder::new(None, None),
     )

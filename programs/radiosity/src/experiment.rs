@@ -56,7 +56,7 @@ impl Default for Settings {
             reference: None,
             target_error: None,
             run: RunOptions {
-                fidelity: Fidelity::Integer,
+                fidelity: Fidelity::Sparse,
                 // 1,000 simulated seconds, far beyond the machine's default of 10: a fine mesh
                 // with many shots may need it, and a runaway program still stops.
                 max_time: Tick(1_000_000_000_000_000),
