@@ -460,8 +460,8 @@ impl SparseEngine {
     /// Enable at the tip of epoch e's chain, solved row by row over the base's bounding area:
     /// each row starts as the base's and is ANDed with one conjunct after another, each sign
     /// test solved only on the span of pixels still enabled, until the row is empty (the
-    /// conjunct that emptied the last row first: a polygon's rows above and below it die at the
-    /// same edge).
+    /// conjunct that emptied the last row first: neighbouring rows tend to die at the same one,
+    /// though a row beside a polygon's vertex takes the two edges that meet there).
     fn chain_plane(&self, e: u32) -> Vec<u64> {
         let ep = self.epoch(e);
         if ep.conj.is_empty() {
