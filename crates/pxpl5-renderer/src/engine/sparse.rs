@@ -573,17 +573,12 @@ impl<'a, B: AsMut<[u64]> + AsRef<[u64]> + Clone> Rows<'a, B> {
     fn value(&mut self, v: Value, py: usize, mask: &[u64]) -> &[u64] {
         let span = span_of(mask, self.width);
         self.sign(v.a, py, span, true);
-        let a = self.a.as_mut();
         if v.a != v.b {
             self.sign(v.b, py, span, false);
-            let a = self.a.as_mut();
-            for (x, &y) in a.iter_mut().zip(self.b.as_ref()) {
-                *x = v.op.apply(*x, y);
-            }
-        } else {
-            for x in a.iter_mut() {
-                *x = v.op.apply(*x, *x);
-            }
+        }
+        let same = v.a == v.b;
+        for (x, &y) in self.a.as_mut().iter_mut().zip(self.b.as_ref()) {
+            *x = v.op.apply(*x, if same { *x } else { y });
         }
         self.a.as_ref()
     }
