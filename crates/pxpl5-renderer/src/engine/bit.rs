@@ -4,14 +4,16 @@
 //!
 //! The QEE's three streams (x-tree, y-tree, cross stage; see [`crate::qee`]) arrive one bit-plane
 //! per cycle, least significant bit first, and each pixel adds them with two serial adders before
-//! its ALU consumes the sum. The host runs a QEE command on *blocks* of words, two rows by one or
+//! its ALU consumes the sum. The host runs a QEE command on *blocks* of words, four rows by one or
 //! more groups, each block through all of the command's micro-cycles before the next, with the
 //! carries of its adders in registers and one loop per kind of result (the blocks are
 //! independent, so their order changes nothing but the host's work). The x-tree's planes are
 //! built once per command; the cross stage's planes Z(x, y) = (E y) x move from row to row by the
-//! tree's own recurrence, Z(x, y + 2) = Z(x, y) + 2 E x, one bit-sliced add per plane. A block's
-//! two rows share one host vector register ([`wide`], portable, with the same results wherever
-//! it runs), so each operation works on 128 pixels.
+//! tree's own recurrence, Z(x, y + 4) = Z(x, y) + 4 E x, one bit-sliced add per plane. A block's
+//! four rows are the lanes of one host vector value (`Rows`): the QEE loops are compiled twice,
+//! once with AVX2 (one 256-bit instruction per operation on 256 pixels) and once portable, and
+//! [`pulp`] picks the build the CPU can run when the engine is made. Both give the same bits,
+//! as a test checks, and our code holds no `unsafe`.
 
 use super::{Geometry, PixelEngine, QeeSink, Registers, gated};
 use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
@@ -25,6 +27,9 @@ pub struct BitEngine {
     planes: Vec<u64>,
     regs: Registers,
     scratch: Scratch,
+    /// The host's vector instructions the QEE loops run with: AVX2 where the CPU has it (found
+    /// once, at construction), else the portable build. Both give the same bits.
+    arch: pulp::Arch,
 }
 
 /// Full-adder sum and carry on 64 pixels.
@@ -41,7 +46,16 @@ impl BitEngine {
             planes: vec![0; memory_bits as usize * geometry.groups],
             regs: Registers::new(geometry, flag_count),
             scratch: Scratch::default(),
+            arch: pulp::Arch::new(),
         }
+    }
+
+    /// This engine with its QEE loops in the portable build whatever the host has: what the
+    /// tests compare the vector build with.
+    #[cfg(test)]
+    fn portable(mut self) -> BitEngine {
+        self.arch = pulp::Arch::Scalar;
+        self
     }
 
     /// Bit `k` of field `f` for group `g`, extended past the field's top by its signedness.
@@ -218,28 +232,35 @@ impl PixelEngine for BitEngine {
 }
 
 /// Rows per block: the rows of a block share the x-tree's planes and the step of the cross
-/// stage, and each has its own row stream, so a block's rows fill a host vector register.
-const ROWS: usize = 2;
+/// stage, and each has its own row stream. Four u64s fill one 256-bit host vector register where
+/// the host has AVX2 (see [`BitEngine::qee`]), two 128-bit ones elsewhere.
+const ROWS: usize = 4;
 
-/// One word of each row of a block (the same group column), side by side in one host vector
-/// register: every operation on it is one instruction for both rows.
+/// One word of each row of a block (the same group column), side by side: every operation is
+/// the same on each lane, so the compiler makes it one vector instruction for all the rows.
 #[derive(Clone, Copy, Default, PartialEq, Eq)]
-struct Rows(u64x2);
+#[repr(align(32))]
+struct Rows([u64; ROWS]);
 
 impl Rows {
     #[inline(always)]
     fn splat(v: u64) -> Rows {
-        Rows(u64x2::splat(v))
-    }
-
-    #[inline(always)]
-    fn from_lanes(v: [u64; ROWS]) -> Rows {
-        Rows(u64x2::new(v))
+        Rows([v; ROWS])
     }
 
     #[inline(always)]
     fn lanes(self) -> [u64; ROWS] {
-        self.0.to_array()
+        self.0
+    }
+
+    /// `op` on each lane of `self` and `o`.
+    #[inline(always)]
+    fn zip(self, o: Rows, op: impl Fn(u64, u64) -> u64) -> Rows {
+        let mut v = self.0;
+        for (a, b) in v.iter_mut().zip(o.0) {
+            *a = op(*a, b);
+        }
+        Rows(v)
     }
 }
 
@@ -247,7 +268,7 @@ impl std::ops::BitAnd for Rows {
     type Output = Rows;
     #[inline(always)]
     fn bitand(self, o: Rows) -> Rows {
-        Rows(self.0 & o.0)
+        self.zip(o, |a, b| a & b)
     }
 }
 
@@ -255,7 +276,7 @@ impl std::ops::BitOr for Rows {
     type Output = Rows;
     #[inline(always)]
     fn bitor(self, o: Rows) -> Rows {
-        Rows(self.0 | o.0)
+        self.zip(o, |a, b| a | b)
     }
 }
 
@@ -263,7 +284,7 @@ impl std::ops::BitXor for Rows {
     type Output = Rows;
     #[inline(always)]
     fn bitxor(self, o: Rows) -> Rows {
-        Rows(self.0 ^ o.0)
+        self.zip(o, |a, b| a ^ b)
     }
 }
 
@@ -373,11 +394,10 @@ impl<'a, const G: usize, const N: usize, const CROSS: bool> BlockStream<'a, G, N
     #[inline(always)]
     fn run(&mut self, from: usize, to: usize, mut f: impl FnMut(usize, Words<N>)) {
         // Bit j of each row's stream, spread over the row's word: 0 - ((y >> j) & 1).
-        let mut rest = u64x2::new(self.rows.map(|y| y.checked_shr(from as u32).unwrap_or(0)));
-        let (zero, one) = (u64x2::splat(0), u64x2::splat(1));
+        let mut rest = Rows(self.rows.map(|y| y.checked_shr(from as u32).unwrap_or(0)));
         let mut row_bits = || {
-            let bits = Rows(zero - (rest & one));
-            rest >>= 1;
+            let bits = Rows(rest.0.map(|y| (y & 1).wrapping_neg()));
+            rest = Rows(rest.0.map(|y| y >> 1));
             bits
         };
         let c0 = self.c0;
@@ -437,6 +457,33 @@ struct QeeCommand<'a> {
     sink: QeeSink,
 }
 
+/// One QEE command's run, for [`pulp::Arch::dispatch`]: its body is compiled once per instruction
+/// set the dispatch can choose (everything it calls in the block loops is `#[inline(always)]`, so
+/// the lanes of [`Rows`] become AVX2 instructions in the AVX2 build).
+struct QeeRun<'a, const G: usize, const CROSS: bool> {
+    engine: &'a mut BitEngine,
+    s: &'a Streams,
+    window: Window,
+    sink: QeeSink,
+    active: &'a [u32],
+}
+
+impl<const G: usize, const CROSS: bool> pulp::WithSimd for QeeRun<'_, G, CROSS> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) {
+        let QeeRun {
+            engine,
+            s,
+            window,
+            sink,
+            active,
+        } = self;
+        engine.qee_run::<G, CROSS>(s, window, sink, active)
+    }
+}
+
 impl BitEngine {
     /// The QEE command on blocks of [`ROWS`] rows by `G` groups: every block runs all its
     /// micro-cycles with its carries in registers before the next block.
@@ -447,13 +494,28 @@ impl BitEngine {
         sink: QeeSink,
         active: &[u32],
     ) {
+        let arch = self.arch;
+        let engine = self;
         if s.cross {
-            self.qee_run::<G, true>(s, window, sink, active)
+            arch.dispatch(QeeRun::<G, true> {
+                engine,
+                s,
+                window,
+                sink,
+                active,
+            })
         } else {
-            self.qee_run::<G, false>(s, window, sink, active)
+            arch.dispatch(QeeRun::<G, false> {
+                engine,
+                s,
+                window,
+                sink,
+                active,
+            })
         }
     }
 
+    #[inline(always)]
     fn qee_run<const G: usize, const CROSS: bool>(
         &mut self,
         s: &Streams,
@@ -481,11 +543,14 @@ impl BitEngine {
             for c in 0..gpr {
                 let x = |i: usize| s.origin_x + (c * 64 + i) as i64;
                 planes_of(|i| s.expr.e * x(i), |j, p| sc.ex[c * 64 + j] = p);
-                // ROWS E x = (E x) << 1: plane j is E x's plane j - 1.
-                const { assert!(ROWS == 2) };
-                sc.step[at(c, 0)] = Rows::default();
-                for j in 1..64 {
-                    sc.step[at(c, j)] = Rows::splat(sc.ex[c * 64 + j - 1]);
+                // ROWS E x = (E x) << log2(ROWS): plane j is E x's plane j - log2(ROWS).
+                const { assert!(ROWS.is_power_of_two()) };
+                let shift = ROWS.trailing_zeros() as usize;
+                for j in 0..64 {
+                    sc.step[at(c, j)] = match j.checked_sub(shift) {
+                        Some(k) => Rows::splat(sc.ex[c * 64 + k]),
+                        None => Rows::default(),
+                    };
                 }
             }
         }
@@ -582,16 +647,20 @@ impl BitEngine {
                         }
                     }
                 } else {
-                    // Afresh: Z of the first row, then of the next by adding E x.
+                    // Afresh: Z of the first row, then of each next one by adding E x.
                     let px = (b * G + c) * 64;
                     let mut first = [0u64; 64];
                     planes_of(|i| cmd.s.cross_at(px + i, py), |j, p| first[j] = p);
                     let ex = &sc.ex[(b * G + c) * 64..][..cycles];
-                    let mut carry = 0;
+                    let mut carry = [0u64; ROWS];
                     for ((p, &z), &d) in cross.iter_mut().zip(&first).zip(ex) {
-                        let (next, n) = full_add(z, d, carry);
-                        carry = n;
-                        p[c] = Rows::from_lanes([z, next]);
+                        let mut lanes = [z; ROWS];
+                        for r in 1..ROWS {
+                            let (next, n) = full_add(lanes[r - 1], d, carry[r]);
+                            carry[r] = n;
+                            lanes[r] = next;
+                        }
+                        p[c] = Rows(lanes);
                     }
                 }
                 sc.cross_row[b * G + c] = py + ROWS;
@@ -730,6 +799,95 @@ impl BitEngine {
 mod tests {
     use super::*;
     use crate::engine::transpose64;
+
+    /// The vector build (AVX2, where this host has it) and the portable build of the QEE loops
+    /// leave the same pixel memory and registers after every kind of QEE command: linear and
+    /// quadratic, with and without the cross stage, on rows of one, two and four groups and on
+    /// heights that leave a partial block of rows.
+    #[test]
+    fn the_vector_build_matches_the_portable_one() {
+        use crate::qee::QeeExpr;
+        let mut rng = pxpl5_geom::rng::Lcg::new(0x005E_ED0F_B175);
+        let field = |offset, bits, signed| Field {
+            offset,
+            bits,
+            signed,
+        };
+        for (width, height) in [(64, 7), (128, 9), (256, 6)] {
+            let geometry = Geometry::new(width, height);
+            for trial in 0..24 {
+                let mut vector = BitEngine::new(geometry, 208, 2);
+                for p in vector.planes.iter_mut() {
+                    *p = rng.next_u64();
+                }
+                for (g, en) in vector.regs.enable.iter_mut().enumerate() {
+                    // Some groups wholly disabled, so that blocks have partial lanes.
+                    *en = if (g + trial) % 3 == 0 {
+                        0
+                    } else {
+                        rng.next_u64()
+                    };
+                }
+                let mut portable = BitEngine::new(geometry, 208, 2).portable();
+                portable.planes = vector.planes.clone();
+                portable.regs = vector.regs.clone();
+                let mut c = || rng.below(2001) as i64 - 1000;
+                let raw = [c(), c(), c(), c(), c(), c()];
+                // Even trials linear, odd ones quadratic (the cross stage where E != 0).
+                let raw = if trial % 2 == 0 {
+                    [raw[0], raw[1], raw[2], 0, 0, 0]
+                } else {
+                    raw
+                };
+                let expr = QeeExpr::from_raw(raw);
+                let origin = (trial as u32 * 3, trial as u32 * 5);
+                let streams = Streams::new(&expr, origin, width as usize, height as usize);
+                let sign = expr.sign_window(origin, width, height);
+                let window = Window {
+                    shift: trial as u32 % 4,
+                    bits: 12,
+                };
+                let (sink, window) = match trial % 4 {
+                    0 => (
+                        QeeSink::Sign {
+                            dst: Bit::Flag(0),
+                            combine: LogicOp::AND,
+                        },
+                        sign,
+                    ),
+                    1 => (
+                        QeeSink::Store {
+                            dst: field(20, 12, true),
+                        },
+                        window,
+                    ),
+                    2 => (
+                        QeeSink::Add {
+                            dst: field(40, 12, false),
+                        },
+                        window,
+                    ),
+                    _ => (
+                        QeeSink::Compare {
+                            field: field(60, 12, trial % 8 == 3),
+                            cmp: Cmp::Le,
+                            dst: Bit::Enable,
+                            combine: LogicOp::OR,
+                        },
+                        window,
+                    ),
+                };
+                let mut active = Vec::new();
+                vector.regs.enabled_groups(&mut active);
+                vector.qee(&streams, window, sink, &active);
+                portable.qee(&streams, window, sink, &active);
+                assert!(
+                    vector.planes == portable.planes && vector.regs == portable.regs,
+                    "{width} x {height}, trial {trial}: {sink:?} differs"
+                );
+            }
+        }
+    }
 
     #[test]
     fn pairwise_transpose_matches_the_shared_one() {
