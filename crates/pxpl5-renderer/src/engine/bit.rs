@@ -16,7 +16,7 @@
 //! as a test checks, and our code holds no `unsafe`.
 
 use super::{Geometry, PixelEngine, QeeSink, Registers, gated};
-use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
+use crate::command::{Anf, Bit, Cmp, Field, LogicOp, Rect};
 use crate::qee::{Streams, Window};
 use wide::u64x2;
 
@@ -326,7 +326,8 @@ struct Scratch {
 const MAX_STEPS: usize = 4;
 
 /// The 64 bit-planes of `values(i)` for the pixels i = 0..64 of a group, plane j into
-/// `set(j, plane)`.
+/// `set(j, plane)`. Inlined, so that its loops take the QEE build's vector instructions.
+#[inline(always)]
 fn planes_of(values: impl Fn(usize) -> i64, mut set: impl FnMut(usize, u64)) {
     let mut m = [0u64; 64];
     for (i, v) in m.iter_mut().enumerate() {
@@ -689,7 +690,7 @@ impl BitEngine {
                 st.run(0, cycles - 1, |_, _| {});
                 let mut last = [[0u64; ROWS]; N];
                 st.run(cycles - 1, cycles, |_, v| last = v.map(Rows::lanes));
-                self.combine_words(dst, combine, block, last.map(|w| w.map(|v| !v)));
+                self.combine_words(dst, combine.anf(), block, last.map(|w| w.map(|v| !v)));
             }
             QeeSink::Store { dst } => {
                 st.run(0, shift, |_, _| {});
@@ -746,7 +747,7 @@ impl BitEngine {
                         value[c][r] = cmp.from_lt_eq(last[c][r], !differs[c][r]);
                     }
                 }
-                self.combine_words(dst, combine, block, value);
+                self.combine_words(dst, combine.anf(), block, value);
             }
         }
     }
@@ -778,11 +779,12 @@ impl BitEngine {
     /// `dst := combine(dst, values)` on the block's rows. The words the command may not change
     /// are combined too: for them the combine is the identity (disabled for a gated write, or 0
     /// kept at 0), which is what leaves them out of the active list.
+    #[inline(always)]
     #[allow(clippy::needless_range_loop)] // (c, r) index a block's words both ways
     fn combine_words<const N: usize>(
         &mut self,
         dst: Bit,
-        combine: LogicOp,
+        combine: Anf,
         block: Block<N>,
         values: [[u64; ROWS]; N],
     ) {

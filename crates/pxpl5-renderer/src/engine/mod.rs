@@ -23,7 +23,7 @@ pub mod bit;
 pub mod integer;
 pub mod sparse;
 
-use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
+use crate::command::{Anf, Bit, Cmp, Field, LogicOp, Rect};
 use crate::qee::{Streams, Window};
 
 /// The shape of the array in 64-pixel groups: pixel (px, py) is bit px % 64 of group
@@ -152,7 +152,8 @@ impl Registers {
         }
     }
 
-    /// [`Registers::combine`] for the consecutive groups `start .. start + N`. Always inlined,
+    /// [`Registers::combine`] for the consecutive groups `start .. start + N`, the op in normal
+    /// form (found once per block by the caller). Always inlined,
     /// with `N` known: the bit level calls it for every block of every QEE command, where as a
     /// call over a slice it took 82 instructions for two words; inlined, the bit level's
     /// hemisphere stream takes 1.8 % fewer instructions (`bench renderer --instructions`).
@@ -162,7 +163,7 @@ impl Registers {
         dst: Bit,
         start: usize,
         values: &[u64; N],
-        combine: LogicOp,
+        combine: Anf,
     ) {
         let end = start + N;
         match dst {
