@@ -844,8 +844,9 @@ mod tests {
                 portable.regs = vector.regs.clone();
                 let mut c = || rng.below(2001) as i64 - 1000;
                 let raw = [c(), c(), c(), c(), c(), c()];
-                // Even trials linear, odd ones quadratic (the cross stage where E != 0).
-                let raw = if trial % 2 == 0 {
+                // Each sink (trial % 4) in turn linear and quadratic (the cross stage where
+                // E != 0), as trial / 4 alternates.
+                let raw = if trial / 4 % 2 == 0 {
                     [raw[0], raw[1], raw[2], 0, 0, 0]
                 } else {
                     raw
