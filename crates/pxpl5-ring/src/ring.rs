@@ -2,6 +2,7 @@
 //! ([`Ring::advance`], or [`Ring::advance_clock_by_clock`], the reference), reports deliveries,
 //! queue space, token positions and statistics. The timing rules are in the crate doc.
 
+use std::cell::Cell;
 use std::collections::BTreeMap;
 
 use pxpl5_config::RingConfig;
@@ -78,6 +79,11 @@ pub struct Ring {
     /// Per node, how many times its output queue has freed words ([`Ring::output_freed`]).
     freed: Vec<u64>,
     flow: Flow,
+    /// The last [`engine::next_decision`] of `out` and `flow`, while neither has changed but
+    /// for `flow.next_clock` moving up to it (which leaves it the answer: a later `from` cannot
+    /// make another token's visit earlier). The machine asks for it twice an instant, once for
+    /// [`Ring::next_event_tick`] and once to [`Ring::advance`]: a tenth of its ring work.
+    decision: Cell<Option<Option<u64>>>,
     holders: Vec<Option<Holder>>,
     /// Clock of each node's latest packet start (for the token-wait statistic).
     last_start: Vec<u64>,
@@ -177,6 +183,7 @@ impl Ring {
                 in_used: vec![0; n],
                 next_clock: 0,
             },
+            decision: Cell::new(None),
             holders: vec![None; cfg.channels as usize],
             last_start: vec![0; n],
             events: BTreeMap::new(),
@@ -293,6 +300,7 @@ impl Ring {
         let packets = words.div_ceil(self.p.max_payload);
         for i in 0..packets {
             let payload = (words - i * self.p.max_payload).min(self.p.max_payload);
+            self.decision.set(None);
             self.out.push(
                 s as usize,
                 Packet {
@@ -344,6 +352,7 @@ impl Ring {
             return Err(RingError::NotDelivered { id });
         }
         let (dst, total) = (msg.dst as usize, u64::from(msg.total));
+        self.decision.set(None);
         let used = &mut self.flow.in_used[dst];
         let clock = self.flow.next_clock;
         *used = used.checked_sub(total).unwrap_or_else(|| {
@@ -366,7 +375,7 @@ impl Ring {
         let mut caps = Vec::new();
         // Edge `t` decides only if it lies before `until` (see the crate doc, "calls and time").
         let stop = self.clock.cycles_ceil(until).get();
-        while let Some(t) = engine::next_decision(&self.p, &self.out, &self.flow) {
+        while let Some(t) = self.next_decision() {
             if t >= stop {
                 break;
             }
@@ -406,6 +415,7 @@ impl Ring {
 
     /// Events due by clock `t`, then the capture decisions of clock `t`.
     fn step(&mut self, t: u64, caps: &mut Vec<Capture>) {
+        self.decision.set(None);
         self.run_events(t);
         caps.clear();
         engine::decide_at(&self.p, &self.out, &mut self.flow, t, caps);
@@ -571,7 +581,7 @@ impl Ring {
     pub fn next_event_tick(&self) -> Option<Tick> {
         let mut best = self.events.keys().next().map(|&(clock, _)| clock);
         // The common case, nothing to decide before the next event, needs no copy of the flow.
-        match engine::next_decision(&self.p, &self.out, &self.flow) {
+        match self.next_decision() {
             None => return best.map(|clock| self.clock.to_ticks(Cycles(clock))),
             Some(t) if best.is_some_and(|b| t >= b) => {
                 return best.map(|clock| self.clock.to_ticks(Cycles(clock)));
@@ -593,6 +603,18 @@ impl Ring {
             }
         }
         best.map(|clock| self.clock.to_ticks(Cycles(clock)))
+    }
+
+    /// [`engine::next_decision`] of the ring's own queues and flow, remembered until they change.
+    fn next_decision(&self) -> Option<u64> {
+        if let Some(d) = self.decision.get()
+            && d.is_none_or(|t| t >= self.flow.next_clock)
+        {
+            return d;
+        }
+        let d = engine::next_decision(&self.p, &self.out, &self.flow);
+        self.decision.set(Some(d));
+        d
     }
 
     /// Whether nothing is queued or in flight (delivered messages not yet consumed do not count).
