@@ -298,9 +298,9 @@ impl Ring {
         self.next_msg += 1;
         let eligible = self.clock.cycles_ceil(now).get();
         let packets = words.div_ceil(self.p.max_payload);
+        self.decision.set(None);
         for i in 0..packets {
             let payload = (words - i * self.p.max_payload).min(self.p.max_payload);
-            self.decision.set(None);
             self.out.push(
                 s as usize,
                 Packet {
