@@ -14,6 +14,7 @@ mod gp_node;
 mod machine;
 pub mod memory;
 mod monitor;
+mod ready;
 mod record;
 mod renderer_node;
 mod run;

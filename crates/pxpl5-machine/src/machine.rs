@@ -34,6 +34,7 @@ use crate::frame_buffer::FrameBufferImage;
 use crate::gp::{Gp, Payload, Program, Shared, Unit};
 use crate::gp_node::{Busy, GpNode, GpState, GpStep};
 use crate::monitor::{CHECK_EVERY, Stop};
+use crate::ready::Ready;
 use crate::record::Recorder;
 use crate::renderer_node::{RendererNode, Started};
 use crate::run::{HostWork, RunError, RunOptions, RunResult};
@@ -76,6 +77,10 @@ pub struct Machine {
     positions: Positions,
     ring: Ring,
     gps: Vec<GpNode>,
+    /// The GPs that can act in an instant: runnable, or blocked on a send the ring has not
+    /// refused since its output queue last freed words. The others wait for what puts them
+    /// back: a wake-up, a message, words freed at their node (`Ring::take_freed_nodes`).
+    gp_ready: Ready,
     renderers: Vec<RendererNode>,
     frame: FrameBufferImage,
     events: EventQueue<Event>,
@@ -115,7 +120,7 @@ impl Machine {
         let gp_clock = clock(cfg.gp.clock_hz, "gp.clock_hz")?;
         let r_clock = clock(cfg.renderer.clock_hz, "renderer.clock_hz")?;
         let fb = (cfg.frame_buffer.width, cfg.frame_buffer.height);
-        let gps = (0..cfg.gp.count)
+        let gps: Vec<GpNode> = (0..cfg.gp.count)
             .map(|i| {
                 let gp = Gp {
                     index: i,
@@ -162,6 +167,7 @@ impl Machine {
             units,
             positions,
             ring,
+            gp_ready: Ready::full(gps.len()),
             gps,
             renderers,
             frame: FrameBufferImage::new(fb.0, fb.1),
@@ -249,7 +255,10 @@ impl Machine {
                 let e = self.events.pop().expect("peeked");
                 match e.payload {
                     Event::RendererDone(r) => self.renderer_done(r),
-                    Event::GpWake(g) => self.gps[g as usize].wake(self.now),
+                    Event::GpWake(g) => {
+                        self.gps[g as usize].wake(self.now);
+                        self.gp_mark(g as usize);
+                    }
                 }
             }
             self.recorder.ring_sample(self.now, &self.ring);
@@ -265,15 +274,31 @@ impl Machine {
     /// Steps 3 to 5 of the loop at the current instant, repeated until nothing changes (a GP's
     /// send can make a Renderer runnable and so on, all at the same instant).
     fn step_units(&mut self) -> Result<(), RunError> {
+        // A refused send may go now if its node's output queue freed words (only the ring's
+        // advance frees them, before this step).
+        let (units, gps, ready) = (&self.units, &self.gps, &mut self.gp_ready);
+        self.ring.take_freed_nodes(|node| {
+            if let Some(&Unit::Gp(g)) = units.get(node.0 as usize)
+                && matches!(gps[g as usize].state, GpState::BlockedSend(_))
+            {
+                ready.set(g as usize, true);
+            }
+        });
         loop {
             let mut progress = false;
             for r in 0..self.renderers.len() {
                 progress |= self.renderer_try_start(r as u32)?;
             }
-            for g in 0..self.gps.len() {
+            let mut next = self.gp_ready.next_from(0);
+            while let Some(g) = next {
+                self.host.gp_checks += 1;
                 progress |= self.gp_run(g as u32)?;
+                next = self.gp_ready.next_from(g + 1);
             }
-            for g in 0..self.gps.len() {
+            let mut next = self.gp_ready.next_from(0);
+            while let Some(g) = next {
+                next = self.gp_ready.next_from(g + 1);
+                self.host.gp_checks += 1;
                 let GpState::BlockedSend(out) = &mut self.gps[g].state else {
                     continue;
                 };
@@ -285,6 +310,10 @@ impl Machine {
                 let offered = self.offer(Unit::Gp(g as u32), to, words, &mut refused)?;
                 if let GpState::BlockedSend(out) = &mut self.gps[g].state {
                     out.refused = refused;
+                }
+                if offered.is_none() {
+                    // Refused: the same answer until the node's output queue frees words.
+                    self.gp_ready.set(g, false);
                 }
                 if let Some(taken) = offered {
                     let GpState::BlockedSend(out) =
@@ -306,6 +335,7 @@ impl Machine {
                         .message_sent(taken.0, Unit::Gp(g as u32), self.now);
                     self.delivery.sent(taken.0, taken.1, out.payload, sent);
                     self.gps[g].sent();
+                    self.gp_mark(g);
                     progress = true;
                 }
             }
@@ -313,6 +343,15 @@ impl Machine {
                 return Ok(());
             }
         }
+    }
+
+    /// GP `g`'s state changed: whether the loop must look at it now follows.
+    fn gp_mark(&mut self, g: usize) {
+        let ready = matches!(
+            self.gps[g].state,
+            GpState::Runnable | GpState::BlockedSend(_)
+        );
+        self.gp_ready.set(g, ready);
     }
 
     fn quiescent(&self) -> bool {
@@ -328,6 +367,7 @@ impl Machine {
             return Ok(false);
         }
         let step = node.run(self.now, &self.cfg.gp.costs);
+        self.gp_mark(g as usize);
         self.flush_phases(g);
         match step? {
             GpStep::Finished => self.recorder.gp_done(g, self.now),
@@ -424,6 +464,7 @@ impl Machine {
                     node.profile = arrived;
                     self.gp_busy(g, until, Busy::Receive);
                 }
+                self.gp_mark(g as usize);
             }
             Unit::Renderer(r) => match message.payload {
                 Payload::Commands(cs) => {

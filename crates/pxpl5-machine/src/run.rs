@@ -96,4 +96,7 @@ pub struct HostWork {
     /// Offers refused because the sender's output queue was full (each retried at a later
     /// instant).
     pub refused_offers: u64,
+    /// GPs the loop looked at (to run one, or to retry its send): only those that could act,
+    /// twice per round of an instant, not every GP at every instant.
+    pub gp_checks: u64,
 }

@@ -78,6 +78,10 @@ pub struct Ring {
     out_used: Vec<u64>,
     /// Per node, how many times its output queue has freed words ([`Ring::output_freed`]).
     freed: Vec<u64>,
+    /// The nodes whose output queue freed words since [`Ring::take_freed_nodes`] last listed
+    /// them, each once (`freed_listed` marks them): at most one entry a node.
+    freed_nodes: Vec<u32>,
+    freed_listed: Vec<bool>,
     flow: Flow,
     /// The last [`engine::next_decision`] of `out` and `flow`, while neither has changed but
     /// for `flow.next_clock` moving up to it (which leaves it the answer: a later `from` cannot
@@ -177,6 +181,8 @@ impl Ring {
             out: Queues::new(n),
             out_used: vec![0; n],
             freed: vec![0; n],
+            freed_nodes: Vec::with_capacity(n),
+            freed_listed: vec![false; n],
             flow: Flow {
                 tokens,
                 offsets: vec![0; n],
@@ -518,6 +524,9 @@ impl Ring {
                     words,
                 } => {
                     self.freed[node as usize] += 1;
+                    if !std::mem::replace(&mut self.freed_listed[node as usize], true) {
+                        self.freed_nodes.push(node);
+                    }
                     let used = &mut self.out_used[node as usize];
                     *used = used.checked_sub(u64::from(words)).unwrap_or_else(|| {
                         panic!(
@@ -628,6 +637,16 @@ impl Ring {
     pub fn output_freed(&self, node: NodeId) -> Result<u64, RingError> {
         let q = self.check_node(node)?;
         Ok(self.freed[q as usize])
+    }
+
+    /// Call `f` with each node whose output queue has freed words (its [`Ring::output_freed`]
+    /// count moved) since the last call, in the order they first did, and forget them: a sender
+    /// refused for want of room need not be looked at before its node is listed here.
+    pub fn take_freed_nodes(&mut self, mut f: impl FnMut(NodeId)) {
+        for node in self.freed_nodes.drain(..) {
+            self.freed_listed[node as usize] = false;
+            f(NodeId(node));
+        }
     }
 
     /// Free words in `node`'s output queue now.
