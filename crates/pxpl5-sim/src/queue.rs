@@ -88,20 +88,35 @@ pub struct Event<T> {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Key {
     tick: Tick,
-    priority: Priority,
-    component: ComponentId,
-    seq: u64,
+    /// Priority, component and sequence number packed high to low, so that the order within a
+    /// tick is one u128 comparison, not a chain of three (a pop compares keys at every level
+    /// of the heap; the machine pops about one event an instant).
+    rest: u128,
+}
+
+impl Key {
+    fn new(tick: Tick, priority: Priority, component: ComponentId, seq: u64) -> Key {
+        let rest = u128::from(priority.0) << 96 | u128::from(component.0) << 64 | u128::from(seq);
+        Key { tick, rest }
+    }
+
+    fn priority(self) -> Priority {
+        Priority((self.rest >> 96) as u8)
+    }
+
+    fn component(self) -> ComponentId {
+        ComponentId((self.rest >> 64) as u32)
+    }
+
+    fn seq(self) -> u64 {
+        self.rest as u64
+    }
 }
 
 impl Ord for Key {
     fn cmp(&self, other: &Self) -> Ordering {
         // Reversed (other against self) to turn the max-heap into a min-heap.
-        (other.tick, other.priority, other.component, other.seq).cmp(&(
-            self.tick,
-            self.priority,
-            self.component,
-            self.seq,
-        ))
+        (other.tick, other.rest).cmp(&(self.tick, self.rest))
     }
 }
 
@@ -210,12 +225,7 @@ impl<T> EventQueue<T> {
         let seq = self.next_seq;
         self.next_seq += 1;
         self.heap.push(Entry {
-            key: Key {
-                tick,
-                priority,
-                component,
-                seq,
-            },
+            key: Key::new(tick, priority, component, seq),
             payload,
         });
         Ok(seq)
@@ -228,9 +238,9 @@ impl<T> EventQueue<T> {
         self.now = key.tick;
         Some(Event {
             tick: key.tick,
-            priority: key.priority,
-            component: key.component,
-            seq: key.seq,
+            priority: key.priority(),
+            component: key.component(),
+            seq: key.seq(),
             payload,
         })
     }
