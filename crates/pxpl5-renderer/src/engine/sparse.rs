@@ -739,12 +739,22 @@ fn and_rows<B: AsMut<[u64]> + AsRef<[u64]> + Clone>(
 ) {
     let mut mask = rows.a.clone();
     let gpr = mask.as_ref().len();
+    // The area's columns as a row mask, made once rather than per row.
+    let mut columns = rows.a.clone();
+    let cols = columns.as_mut();
+    cols.fill(0);
+    for_span_words(area.x0, area.x1, |i, m| cols[i] = m);
     let mut killer = 0;
     for py in area.y0..=area.y1 {
         let at = py * gpr;
         let words = mask.as_mut();
-        words.fill(0);
-        for_span_words(area.x0, area.x1, |i, m| words[i] = ep.base[at + i] & m);
+        for ((w, &b), &c) in words
+            .iter_mut()
+            .zip(&ep.base[at..at + gpr])
+            .zip(columns.as_ref())
+        {
+            *w = b & c;
+        }
         if words.iter().any(|&w| w != 0) {
             // The steps from the killer on, round to the one before it; a step that leaves no
             // pixel leaves the mask zero.
@@ -799,7 +809,24 @@ fn for_span_words(x0: usize, x1: usize, mut f: impl FnMut(usize, u64)) {
 }
 
 /// The first and last set bit of a nonzero row.
+#[inline(always)]
 fn span_of(mask: &[u64], width: usize) -> (usize, usize) {
+    // The seed's two-group row without the searches' loops (they were 1.5 % of the main job).
+    if let &[w0, w1] = mask {
+        let first = if w0 != 0 {
+            w0.trailing_zeros() as usize
+        } else if w1 != 0 {
+            64 + w1.trailing_zeros() as usize
+        } else {
+            return (0, width - 1);
+        };
+        let last = if w1 != 0 {
+            127 - w1.leading_zeros() as usize
+        } else {
+            63 - w0.leading_zeros() as usize
+        };
+        return (first, last);
+    }
     let first = mask.iter().position(|&w| w != 0);
     let last = mask.iter().rposition(|&w| w != 0);
     match (first, last) {
