@@ -356,7 +356,18 @@ fn count_instructions(args: &[String], function: &str) -> Result<u64, UserError>
                     .find_map(|l| l.strip_prefix("summary:"))
                     .and_then(|n| n.trim().parse().ok())
             })
-            .ok_or_else(|| UserError("--instructions: valgrind wrote no instruction count".into())),
+            .ok_or_else(|| UserError("--instructions: valgrind wrote no instruction count".into()))
+            .and_then(|n: u64| {
+                // Nothing counted: no function matched (inlined away), not a free simulation.
+                if n == 0 {
+                    Err(UserError(format!(
+                        "--instructions: no instructions ran inside `{function}`: the build \
+                         inlined it away"
+                    )))
+                } else {
+                    Ok(n)
+                }
+            }),
     }
 }
 

@@ -180,7 +180,9 @@ impl Machine {
         })
     }
 
-    /// Run the program to completion.
+    /// Run the program to completion. Never inlined: `pxpl5 bench machine --instructions`
+    /// counts the instructions inside it by name, across link-time optimisation.
+    #[inline(never)]
     pub fn run(mut self) -> Result<RunResult, RunError> {
         let _span =
             tracing::debug_span!("machine", program = %self.program, config = %self.cfg.name)

@@ -43,7 +43,10 @@ pub struct Stream {
 }
 
 impl Stream {
-    /// Run every command on `board`; the board's cycle count when it is done.
+    /// Run every command on `board`; the board's cycle count when it is done. Never inlined:
+    /// `pxpl5 bench renderer --instructions` counts the instructions inside it by name, and the
+    /// release build's link-time optimisation would otherwise fold it into its caller.
+    #[inline(never)]
     pub fn run(&self, board: &mut Board) -> Result<Cycles, CommandError> {
         for c in &self.commands {
             board.execute(c)?;
