@@ -13,6 +13,19 @@ pub fn clip<V: Clone>(
     crossing: impl Fn(&V, &V) -> V,
 ) -> Vec<V> {
     let mut out = Vec::with_capacity(poly.len() + 2);
+    clip_into(poly, inside, crossing, &mut out);
+    out
+}
+
+/// [`clip`] into `out` (cleared first), so that a caller clipping by plane after plane reuses two
+/// buffers instead of allocating a polygon per plane.
+pub fn clip_into<V: Clone>(
+    poly: &[V],
+    inside: impl Fn(&V) -> bool,
+    crossing: impl Fn(&V, &V) -> V,
+    out: &mut Vec<V>,
+) {
+    out.clear();
     for i in 0..poly.len() {
         let (a, b) = (&poly[i], &poly[(i + 1) % poly.len()]);
         let (ia, ib) = (inside(a), inside(b));
@@ -23,14 +36,20 @@ pub fn clip<V: Clone>(
             out.push(crossing(a, b));
         }
     }
-    out
 }
 
 /// The part of `poly` where `d(p) = n . p + w >= 0` (`plane` = (n, w)); the crossing is
 /// `a + t (b - a)` with `t = d(a) / (d(a) - d(b))`.
-pub fn clip_to_half_space(poly: &[DVec3], (n, w): (DVec3, f64)) -> Vec<DVec3> {
+pub fn clip_to_half_space(poly: &[DVec3], plane: (DVec3, f64)) -> Vec<DVec3> {
+    let mut out = Vec::with_capacity(poly.len() + 2);
+    clip_to_half_space_into(poly, plane, &mut out);
+    out
+}
+
+/// [`clip_to_half_space`] into `out` (cleared first).
+pub fn clip_to_half_space_into(poly: &[DVec3], (n, w): (DVec3, f64), out: &mut Vec<DVec3>) {
     let d = |p: &DVec3| n.x * p.x + n.y * p.y + n.z * p.z + w;
-    clip(
+    clip_into(
         poly,
         |p| d(p) >= 0.0,
         |a, b| {
@@ -38,7 +57,8 @@ pub fn clip_to_half_space(poly: &[DVec3], (n, w): (DVec3, f64)) -> Vec<DVec3> {
             let t = da / (da - db);
             *a + t * (*b - *a)
         },
-    )
+        out,
+    );
 }
 
 #[cfg(test)]

@@ -1145,12 +1145,16 @@ async fn accumulate(
     let ids = readback::unpack(words, *bits, s.word_bits, count);
     gp.work(|cost| {
         cost.add(Op::FfAccumulatePerPixel, count as u64);
-        for (i, &id) in ids.iter().enumerate() {
-            if id == 0 {
-                continue;
+        // Row by row, in pixel order (the sums' order of addition is the result's): no
+        // division per pixel.
+        let width = rect.width as usize;
+        for (row, ids) in ids.chunks_exact(width).enumerate() {
+            let at = ((rect.y + row as u32) * v.width + rect.x) as usize;
+            for (&id, &delta) in ids.iter().zip(&v.delta[at..at + width]) {
+                if id != 0 {
+                    sums.add(id as u16, delta);
+                }
             }
-            let (x, t) = (i as u32 % rect.width, rect.y + i as u32 / rect.width);
-            sums.add(id as u16, v.delta[(t * v.width + x) as usize]);
         }
     })
     .await;

@@ -15,7 +15,7 @@
 
 use pxpl5_config::FixedFormat;
 use pxpl5_geom::DVec3;
-use pxpl5_geom::clip::clip_to_half_space;
+use pxpl5_geom::clip::clip_to_half_space_into;
 use pxpl5_geom::grid::Grid;
 use pxpl5_renderer::qee::substitute_affine;
 use pxpl5_renderer::{Bit, Cmp, Command, Field, LogicOp, QeeExpr, Window};
@@ -706,10 +706,15 @@ pub fn hemicube_polygon(
 ) -> Result<Vec<Command>, Cull> {
     let (normal, d) = receiver_plane(verts)?;
     let (r, u, fw) = face.axes();
-    let mut poly: Vec<DVec3> = verts
-        .iter()
-        .map(|v| DVec3::new(v.dot(r), v.dot(u), v.dot(fw)))
-        .collect();
+    // Two buffers, swapped plane by plane (a fresh polygon per plane was 5 allocations of a
+    // receiver's 8 on each face).
+    let mut poly: Vec<DVec3> = Vec::with_capacity(verts.len() + 5);
+    poly.extend(
+        verts
+            .iter()
+            .map(|v| DVec3::new(v.dot(r), v.dot(u), v.dot(fw))),
+    );
+    let mut clipped: Vec<DVec3> = Vec::with_capacity(verts.len() + 5);
     // The face's frustum: Z >= near, -Z <= X <= Z, and -Z <= Y <= Z (top) or 0 <= Y <= Z (side).
     let y_low = match face {
         Face::Top => (DVec3::new(0.0, 1.0, 1.0), 0.0),
@@ -722,7 +727,8 @@ pub fn hemicube_polygon(
         (DVec3::new(0.0, -1.0, 1.0), 0.0),
         y_low,
     ] {
-        poly = clip_to_half_space(&poly, plane);
+        clip_to_half_space_into(&poly, plane, &mut clipped);
+        std::mem::swap(&mut poly, &mut clipped);
         if poly.len() < 3 {
             return Err(Cull::OutsideFace);
         }
