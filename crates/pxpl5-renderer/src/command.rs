@@ -20,6 +20,46 @@ pub struct Field {
     pub signed: bool,
 }
 
+/// The fields one command names ([`Command::fields`]): at most three, in order, as a slice.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Fields {
+    len: usize,
+    fields: [Field; 3],
+}
+
+impl Fields {
+    fn of(named: &[Field]) -> Fields {
+        let none = Field {
+            offset: 0,
+            bits: 0,
+            signed: false,
+        };
+        let mut fields = [none; 3];
+        fields[..named.len()].copy_from_slice(named);
+        Fields {
+            len: named.len(),
+            fields,
+        }
+    }
+}
+
+impl std::ops::Deref for Fields {
+    type Target = [Field];
+
+    fn deref(&self) -> &[Field] {
+        &self.fields[..self.len]
+    }
+}
+
+impl IntoIterator for Fields {
+    type Item = Field;
+    type IntoIter = std::iter::Take<std::array::IntoIter<Field, 3>>;
+
+    fn into_iter(self) -> Self::IntoIter {
+        self.fields.into_iter().take(self.len)
+    }
+}
+
 impl Field {
     pub fn end(self) -> u32 {
         // Saturating: a command may carry any offset, and a field ending past u32::MAX lies
@@ -362,23 +402,26 @@ impl Command {
         }
     }
 
-    /// The fields of pixel memory the command reads or writes (for backing-store interlocks).
-    pub fn fields(&self) -> Vec<Field> {
+    /// The fields of pixel memory the command reads or writes (for backing-store interlocks),
+    /// without an allocation (a `Vec` per command was a million allocations a hemicube run).
+    pub fn fields(&self) -> Fields {
         match *self {
-            Command::WritePixels { dst, .. } => vec![dst],
-            Command::QeeStore { dst, .. } | Command::QeeAdd { dst, .. } => vec![dst],
-            Command::QeeCompare { field, .. } => vec![field],
-            Command::WriteConst { dst, .. } => vec![dst],
-            Command::Copy { dst, src } | Command::MulConst { dst, src, .. } => vec![dst, src],
-            Command::Add { dst, a, b } | Command::Sub { dst, a, b } => vec![dst, a, b],
-            Command::Compare { a, b, .. } => vec![a, b],
+            Command::WritePixels { dst, .. } => Fields::of(&[dst]),
+            Command::QeeStore { dst, .. } | Command::QeeAdd { dst, .. } => Fields::of(&[dst]),
+            Command::QeeCompare { field, .. } => Fields::of(&[field]),
+            Command::WriteConst { dst, .. } => Fields::of(&[dst]),
+            Command::Copy { dst, src } | Command::MulConst { dst, src, .. } => {
+                Fields::of(&[dst, src])
+            }
+            Command::Add { dst, a, b } | Command::Sub { dst, a, b } => Fields::of(&[dst, a, b]),
+            Command::Compare { a, b, .. } => Fields::of(&[a, b]),
             Command::Save { field, .. }
             | Command::Load { field, .. }
-            | Command::Readback { field, .. } => vec![field],
+            | Command::Readback { field, .. } => Fields::of(&[field]),
             Command::SetOrigin { .. }
             | Command::Logic { .. }
             | Command::QeeSign { .. }
-            | Command::Fence => vec![],
+            | Command::Fence => Fields::of(&[]),
         }
     }
 

@@ -27,7 +27,7 @@ mod workers;
 pub use board::{
     Board, BoardImage, BoardStats, CommandError, Executed, Fidelity, KindStats, ReadbackStream,
 };
-pub use command::{Bit, Cmp, Command, Field, LogicOp, Rect};
+pub use command::{Bit, Cmp, Command, Field, Fields, LogicOp, Rect};
 pub use cycles::{backing_store_blocks, backing_store_cycles, cycle_cost};
 pub use layout::{LayoutError, PixelLayout};
 pub use qee::{QeeExpr, QuantiseError, Window};
