@@ -94,6 +94,8 @@ pub struct Machine {
     categories: Categories,
     fixed: Fixed,
     gp_phase: Vec<Cat>,
+    /// Each phase name's category, in order of first mark.
+    phase_cats: Vec<(String, Cat)>,
     /// Each Renderer command kind's category, by `Command::kind_index`, made on first use.
     kinds: Vec<Option<Cat>>,
     host: HostWork,
@@ -158,6 +160,7 @@ impl Machine {
         let computing = categories.get("GP computing", Resource::Gp);
         Ok(Machine {
             gp_phase: vec![computing; cfg.gp.count as usize],
+            phase_cats: Vec::new(),
             categories,
             fixed,
             kinds: vec![None; pxpl5_renderer::Command::KINDS.len()],
@@ -592,9 +595,20 @@ impl Machine {
     /// Move GP phase marks to the recorder; the last is the GP's phase from now on.
     fn flush_phases(&mut self, g: u32) {
         for mark in self.gps[g as usize].take_phase_marks() {
-            self.recorder.phase(g, &mark.name, mark.at);
-            let name = format!("GP {}", mark.name);
-            self.gp_phase[g as usize] = self.categories.get(&name, Resource::Gp);
+            // A program has a few phase names and marks them every shot: their categories are
+            // looked up by name here, not formatted and hashed per mark.
+            let cat = match self.phase_cats.iter().find(|(name, _)| *name == mark.name) {
+                Some(&(_, cat)) => cat,
+                None => {
+                    let cat = self
+                        .categories
+                        .get(&format!("GP {}", mark.name), Resource::Gp);
+                    self.phase_cats.push((mark.name.clone(), cat));
+                    cat
+                }
+            };
+            self.gp_phase[g as usize] = cat;
+            self.recorder.phase(g, mark.name, mark.at);
         }
     }
 

@@ -307,12 +307,8 @@ impl Recorder {
         }
     }
 
-    pub(crate) fn phase(&mut self, gp: u32, name: &str, at: Tick) {
-        self.marks.push(Mark {
-            gp,
-            name: name.to_string(),
-            at,
-        });
+    pub(crate) fn phase(&mut self, gp: u32, name: String, at: Tick) {
+        self.marks.push(Mark { gp, name, at });
     }
 
     pub(crate) fn gp_busy(&mut self, gp: u32, start: Tick, end: Tick, busy: Busy) {
