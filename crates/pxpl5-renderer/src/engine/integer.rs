@@ -499,13 +499,30 @@ impl PixelEngine for IntegerEngine {
                     combine,
                 } => {
                     let a = Access::of(field);
-                    let mut result = 0u64;
-                    for_each_bit(needed(dst, combine, en), |i| {
-                        let lhs = value_of(cut(i), field.bits, field.signed);
-                        let rhs =
-                            value_of(self.get(a, base + i as usize), field.bits, field.signed);
-                        result |= (cmp.holds(lhs, rhs) as u64) << i;
-                    });
+                    let need = needed(dst, combine, en);
+                    let result = if field.bits < 64 && window.bits < 64 {
+                        // Both sides fit i64 (`value_of` of fewer than 64 bits): the pixel's
+                        // two facts, lhs < rhs and lhs == rhs, and the comparison once per
+                        // group, as the serial subtract gives them (a match per pixel was half
+                        // a depth test's instructions).
+                        let (mut lt, mut eq) = (0u64, 0u64);
+                        let value = |raw: u64| extend(raw, field.bits, field.signed) as i64;
+                        for_each_bit(need, |i| {
+                            let (lhs, rhs) = (value(cut(i)), value(self.get(a, base + i as usize)));
+                            lt |= u64::from(lhs < rhs) << i;
+                            eq |= u64::from(lhs == rhs) << i;
+                        });
+                        cmp.from_lt_eq(lt, eq) & need
+                    } else {
+                        let mut result = 0u64;
+                        for_each_bit(need, |i| {
+                            let lhs = value_of(cut(i), field.bits, field.signed);
+                            let rhs =
+                                value_of(self.get(a, base + i as usize), field.bits, field.signed);
+                            result |= (cmp.holds(lhs, rhs) as u64) << i;
+                        });
+                        result
+                    };
                     self.regs.combine(dst, g, result, combine);
                 }
             }
