@@ -168,6 +168,23 @@ pub(crate) struct Flow {
     pub next_clock: u64,
 }
 
+impl Flow {
+    /// Become a copy of `other`, in this flow's own buffers (destructured, so that a new field
+    /// cannot be forgotten here).
+    pub fn copy_from(&mut self, other: &Flow) {
+        let Flow {
+            tokens,
+            offsets,
+            in_used,
+            next_clock,
+        } = other;
+        self.tokens.clone_from(tokens);
+        self.offsets.clone_from(offsets);
+        self.in_used.clone_from(in_used);
+        self.next_clock = *next_clock;
+    }
+}
+
 /// A packet that started on a channel, with its timing fixed at that moment.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Capture {
