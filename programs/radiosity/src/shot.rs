@@ -1238,17 +1238,19 @@ fn band_rows(rows: u32, gps: u32, band: u32) -> (u32, u32) {
 /// face's frustum.
 fn may_touch(verts: &[DVec3], face: Face) -> bool {
     let (r, u, f) = face.axes();
-    let planes: Vec<Box<dyn Fn(DVec3) -> f64>> = vec![
-        Box::new(move |p: DVec3| p.dot(f)),
-        Box::new(move |p: DVec3| p.dot(f) - p.dot(r)),
-        Box::new(move |p: DVec3| p.dot(f) + p.dot(r)),
-        Box::new(move |p: DVec3| p.dot(f) - p.dot(u)),
-        Box::new(move |p: DVec3| match face {
+    // The five planes by number, each evaluated as it always was (a boxed closure each, in a
+    // Vec, was six allocations per receiver and face: 3.7 M in a hemicube run).
+    let plane = |k: usize, p: DVec3| match k {
+        0 => p.dot(f),
+        1 => p.dot(f) - p.dot(r),
+        2 => p.dot(f) + p.dot(r),
+        3 => p.dot(f) - p.dot(u),
+        _ => match face {
             Face::Top => p.dot(f) + p.dot(u),
             Face::Side(_) => p.dot(u),
-        }),
-    ];
-    planes.iter().all(|pl| verts.iter().any(|v| pl(*v) >= 0.0))
+        },
+    };
+    (0..5).all(|k| verts.iter().any(|v| plane(k, *v) >= 0.0))
 }
 
 #[cfg(test)]
