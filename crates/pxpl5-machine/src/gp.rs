@@ -90,6 +90,18 @@ pub enum Op {
 }
 
 impl Op {
+    /// Every operation, in declaration order (`op as usize` is its place).
+    pub const ALL: [Op; 8] = [
+        Op::VertexTransform,
+        Op::ClipTest,
+        Op::PolygonSetup,
+        Op::EdgeSetup,
+        Op::CommandEncode,
+        Op::FfAccumulatePerPixel,
+        Op::WTableEntry,
+        Op::RadiosityUpdatePerPatch,
+    ];
+
     /// i860 cycles of one operation.
     pub fn cycles(self, t: &GpCostTable) -> u64 {
         match self {
@@ -108,30 +120,31 @@ impl Op {
 /// The i860 operations a piece of GP work performed, priced by the cost table when
 /// [`Gp::work`] charges them. Work that can run outside a GP (to record a command stream, say)
 /// takes a `&mut Cost` and notes each operation where it does it, so what is charged and what is
-/// computed cannot drift apart.
+/// computed cannot drift apart. A count per kind of operation, not a list: a list was an
+/// allocation per piece of work (a receiver's commands, 24 K in 24 hemicube shots).
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Cost {
-    ops: Vec<(Op, u64)>,
+    counts: [u64; Op::ALL.len()],
 }
 
 impl Cost {
     /// Note `count` operations of kind `op`.
     pub fn add(&mut self, op: Op, count: u64) {
-        if count > 0 {
-            self.ops.push((op, count));
-        }
+        let c = &mut self.counts[op as usize];
+        *c = c.saturating_add(count);
     }
 
-    /// The operations noted, in order.
-    pub fn ops(&self) -> &[(Op, u64)] {
-        &self.ops
+    /// The operations of kind `op` noted so far.
+    pub fn count(&self, op: Op) -> u64 {
+        self.counts[op as usize]
     }
 
     /// i860 cycles of everything noted, saturating at `u64::MAX` (costs are user input; a
     /// saturated charge ends the run at its time limit, see `pxpl5_sim`'s time module).
     pub fn cycles(&self, t: &GpCostTable) -> u64 {
-        self.ops.iter().fold(0u64, |sum, &(op, n)| {
-            sum.saturating_add(op.cycles(t).saturating_mul(n))
+        // min(sum of cycles x count, u64::MAX): the same in any grouping of the counts.
+        Op::ALL.iter().fold(0u64, |sum, &op| {
+            sum.saturating_add(op.cycles(t).saturating_mul(self.count(op)))
         })
     }
 }
@@ -537,4 +550,37 @@ pub trait Program {
     fn name(&self) -> &str;
     /// The code GP `gp.index()` runs.
     fn gp_main(&self, gp: Gp) -> GpFuture;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Cost, Op};
+    use pxpl5_config::GpCostTable;
+
+    /// `op as usize` is the op's place in `Op::ALL`: a count noted under one op is charged at
+    /// that op's price.
+    #[test]
+    fn every_op_is_counted_at_its_own_price() {
+        let t = GpCostTable::default();
+        for (i, &op) in Op::ALL.iter().enumerate() {
+            assert_eq!(op as usize, i, "{op:?}");
+            let mut c = Cost::default();
+            c.add(op, 3);
+            c.add(op, 4);
+            assert_eq!(c.count(op), 7, "{op:?}");
+            assert_eq!(c.cycles(&t), op.cycles(&t) * 7, "{op:?}");
+        }
+    }
+
+    /// A charge that overflows saturates, as a list of (op, count) summed with saturation did.
+    #[test]
+    fn an_overflowing_charge_saturates() {
+        let t = GpCostTable::default();
+        let mut c = Cost::default();
+        c.add(Op::VertexTransform, u64::MAX / 2);
+        c.add(Op::VertexTransform, u64::MAX / 2);
+        c.add(Op::ClipTest, 5);
+        assert!(Op::VertexTransform.cycles(&t) > 1);
+        assert_eq!(c.cycles(&t), u64::MAX);
+    }
 }
