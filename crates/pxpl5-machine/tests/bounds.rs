@@ -37,16 +37,7 @@ impl Program for EveryCost {
 
     fn gp_main(&self, gp: Gp) -> GpFuture {
         Box::pin(async move {
-            for op in [
-                Op::VertexTransform,
-                Op::ClipTest,
-                Op::PolygonSetup,
-                Op::EdgeSetup,
-                Op::CommandEncode,
-                Op::FfAccumulatePerPixel,
-                Op::WTableEntry,
-                Op::RadiosityUpdatePerPatch,
-            ] {
+            for op in Op::ALL {
                 gp.compute(op, 1 << 20).await;
             }
             if gp.index() != 0 {
