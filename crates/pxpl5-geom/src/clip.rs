@@ -38,15 +38,8 @@ pub fn clip_into<V: Clone>(
     }
 }
 
-/// The part of `poly` where `d(p) = n . p + w >= 0` (`plane` = (n, w)); the crossing is
-/// `a + t (b - a)` with `t = d(a) / (d(a) - d(b))`.
-pub fn clip_to_half_space(poly: &[DVec3], plane: (DVec3, f64)) -> Vec<DVec3> {
-    let mut out = Vec::with_capacity(poly.len() + 2);
-    clip_to_half_space_into(poly, plane, &mut out);
-    out
-}
-
-/// [`clip_to_half_space`] into `out` (cleared first).
+/// The part of `poly` where `d(p) = n . p + w >= 0` (`plane` = (n, w)), into `out` (cleared
+/// first); the crossing is `a + t (b - a)` with `t = d(a) / (d(a) - d(b))`.
 pub fn clip_to_half_space_into(poly: &[DVec3], (n, w): (DVec3, f64), out: &mut Vec<DVec3>) {
     let d = |p: &DVec3| n.x * p.x + n.y * p.y + n.z * p.z + w;
     clip_into(
@@ -64,6 +57,13 @@ pub fn clip_to_half_space_into(poly: &[DVec3], (n, w): (DVec3, f64), out: &mut V
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn clip_to_half_space(poly: &[DVec3], plane: (DVec3, f64)) -> Vec<DVec3> {
+        // A buffer that held something: the clip must clear it.
+        let mut out = vec![DVec3::splat(9.0); 7];
+        clip_to_half_space_into(poly, plane, &mut out);
+        out
+    }
 
     #[test]
     fn clips_a_square_to_a_half_plane() {
