@@ -87,16 +87,10 @@ pub fn unpack(words: &[u64], bits: u32, word_bits: u32, count: usize) -> Vec<u64
         // ID fields (an `extend` per word cost 20 instructions a pixel on the hemicube).
         let mut out = vec![0; count];
         match k {
-            1 => unpack_words::<1>(words, bits, m, &mut out),
-            2 => unpack_words::<2>(words, bits, m, &mut out),
-            4 => unpack_words::<4>(words, bits, m, &mut out),
-            _ => {
-                for (chunk, &w) in out.chunks_mut(k).zip(words) {
-                    for (j, o) in chunk.iter_mut().enumerate() {
-                        *o = (w >> (j as u32 * bits)) & m;
-                    }
-                }
-            }
+            1 => unpack_words(1, words, bits, m, &mut out),
+            2 => unpack_words(2, words, bits, m, &mut out),
+            4 => unpack_words(4, words, bits, m, &mut out),
+            k => unpack_words(k, words, bits, m, &mut out),
         }
         out
     } else {
@@ -111,22 +105,25 @@ pub fn unpack(words: &[u64], bits: u32, word_bits: u32, count: usize) -> Vec<u64
     }
 }
 
-/// [`unpack`] of K pixels a word into `out`; the last word may hold fewer.
+/// [`unpack`] of `k` pixels a word into `out`; the last word may hold fewer. Always inlined,
+/// so that a literal `k` makes the inner loop one the compiler unrolls.
 #[inline(always)]
-fn unpack_words<const K: usize>(words: &[u64], bits: u32, m: u64, out: &mut [u64]) {
-    let full = out.len() / K;
-    let mut chunks = out.chunks_exact_mut(K);
-    for (chunk, &w) in (&mut chunks).zip(words) {
-        for (j, o) in chunk.iter_mut().enumerate() {
+fn unpack_words(k: usize, words: &[u64], bits: u32, m: u64, out: &mut [u64]) {
+    let word = |w: u64, pixels: &mut [u64]| {
+        for (j, o) in pixels.iter_mut().enumerate() {
             *o = (w >> (j as u32 * bits)) & m;
         }
+    };
+    // Whole words by exact chunks (the compiler unrolls those; `chunks_mut` cost 3 % more
+    // instructions on the hemicube by `bench machine`), then the last word's part.
+    let full = out.len() / k;
+    let mut chunks = out.chunks_exact_mut(k);
+    for (chunk, &w) in (&mut chunks).zip(words) {
+        word(w, chunk);
     }
     let rest = chunks.into_remainder();
     if !rest.is_empty() {
-        let w = words[full];
-        for (j, o) in rest.iter_mut().enumerate() {
-            *o = (w >> (j as u32 * bits)) & m;
-        }
+        word(words[full], rest);
     }
 }
 
