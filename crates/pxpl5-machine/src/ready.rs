@@ -1,6 +1,8 @@
 //! The set of units the machine's loop must look at in an instant: a bit per unit, so an
-//! instant costs the units that can act, not every unit (the main job's 16 GPs were checked
-//! twice per instant, 2.2 M instants: 8 % of its host instructions, by callgrind).
+//! instant costs the units that can act, not every unit. The main job's 16 GPs were each looked
+//! at twice in each of 2.2 M instants; looking only at those that can act (and parking a refused
+//! sender until its queue frees words) took its hemisphere run from 19.60 G to 16.61 G
+//! instructions, by callgrind.
 
 /// Unit indices `0 .. n`, each in the set or not; iterated in ascending order, the order in
 /// which the loop acts on them.
