@@ -57,27 +57,61 @@ pub fn pack_messages(
 
 /// Ring words carrying `values` (raw `bits`-bit field values) at `word_bits` bits per word.
 pub fn pack(values: &[u64], bits: u32, word_bits: u32) -> Vec<u64> {
+    let mut out = Vec::with_capacity(words_needed(values.len(), bits, word_bits));
     if bits <= word_bits {
-        let k = (word_bits / bits) as usize;
-        values
-            .chunks(k)
-            .map(|chunk| {
-                chunk.iter().enumerate().fold(0u64, |w, (i, &v)| {
-                    w | ((v & mask(bits)) << (i as u32 * bits))
-                })
-            })
-            .collect()
+        // k known to the compiler for the usual ID fields, as in `unpack` (a general fold per
+        // word cost 22 instructions a pixel of a hemicube readback).
+        let m = mask(bits);
+        match (word_bits / bits) as usize {
+            1 => pack_words(1, values, bits, m, &mut out),
+            2 => pack_words(2, values, bits, m, &mut out),
+            4 => pack_words(4, values, bits, m, &mut out),
+            k => pack_words(k, values, bits, m, &mut out),
+        }
     } else {
         let per = bits.div_ceil(word_bits);
-        values
+        out.extend(
+            values
+                .iter()
+                .flat_map(|&v| (0..per).map(move |j| (v >> (j * word_bits)) & mask(word_bits))),
+        );
+    }
+    out
+}
+
+/// [`pack`] of `k` pixels a word onto `out`, the last word holding the rest. Always inlined, so
+/// that a literal `k` makes the inner loop one the compiler unrolls.
+#[inline(always)]
+fn pack_words(k: usize, values: &[u64], bits: u32, m: u64, out: &mut Vec<u64>) {
+    let word = |pixels: &[u64]| {
+        pixels
             .iter()
-            .flat_map(|&v| (0..per).map(move |j| (v >> (j * word_bits)) & mask(word_bits)))
-            .collect()
+            .enumerate()
+            .fold(0u64, |w, (i, &v)| w | ((v & m) << (i as u32 * bits)))
+    };
+    let mut chunks = values.chunks_exact(k);
+    out.extend((&mut chunks).map(word));
+    let rest = chunks.remainder();
+    if !rest.is_empty() {
+        out.push(word(rest));
     }
 }
 
 /// The inverse of [`pack`] for `count` pixels.
 pub fn unpack(words: &[u64], bits: u32, word_bits: u32, count: usize) -> Vec<u64> {
+    let mut out = Vec::new();
+    unpack_into(words, bits, word_bits, count, &mut out);
+    out
+}
+
+/// [`unpack`] into `out`, whose contents are replaced: a GP that reads back message after
+/// message keeps one buffer (a fresh zeroed one per message was 2.5 % of a hemicube run's
+/// instructions, most of them in `calloc`).
+pub fn unpack_into(words: &[u64], bits: u32, word_bits: u32, count: usize, out: &mut Vec<u64>) {
+    // Every pixel is written below, so only a buffer that grows is filled first (zeroing it
+    // per message cost 8 instructions a pixel).
+    out.truncate(count);
+    out.resize(count, 0);
     if bits <= word_bits {
         // Word by word, k pixels each, then the last word's part: no division per pixel (a
         // GP unpacks every ID it reads back, 49,152 per hemicube shot).
@@ -85,23 +119,19 @@ pub fn unpack(words: &[u64], bits: u32, word_bits: u32, count: usize) -> Vec<u64
         let m = mask(bits);
         // Filled in place, a word's k pixels at a time, k known to the compiler for the usual
         // ID fields (an `extend` per word cost 20 instructions a pixel on the hemicube).
-        let mut out = vec![0; count];
         match k {
-            1 => unpack_words(1, words, bits, m, &mut out),
-            2 => unpack_words(2, words, bits, m, &mut out),
-            4 => unpack_words(4, words, bits, m, &mut out),
-            k => unpack_words(k, words, bits, m, &mut out),
+            1 => unpack_words(1, words, bits, m, out),
+            2 => unpack_words(2, words, bits, m, out),
+            4 => unpack_words(4, words, bits, m, out),
+            k => unpack_words(k, words, bits, m, out),
         }
-        out
     } else {
         let per = bits.div_ceil(word_bits) as usize;
-        (0..count)
-            .map(|i| {
-                (0..per).fold(0u64, |v, j| {
-                    v | (words[i * per + j] << (j as u32 * word_bits))
-                })
-            })
-            .collect()
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = (0..per).fold(0u64, |v, j| {
+                v | (words[i * per + j] << (j as u32 * word_bits))
+            });
+        }
     }
 }
 
@@ -159,6 +189,21 @@ mod tests {
         assert_eq!(w, vec![0x2345_6789, 0x1]);
         assert_eq!(unpack(&w, 40, 32, 1), vec![0x1_2345_6789]);
         assert_eq!(words_needed(5, 40, 32), 10);
+    }
+
+    /// `unpack_into` gives `unpack`'s pixels whatever its buffer held before, longer or shorter.
+    #[test]
+    fn unpack_into_replaces_the_buffer() {
+        let px: Vec<u64> = (0..37).map(|i| (i * 2654435761u64) & 0x3ff).collect();
+        for bits in [10, 16, 32, 40] {
+            let w = pack(&px, bits, 32);
+            for held in [vec![], vec![u64::MAX; 5], vec![7; 100]] {
+                let mut out = held;
+                unpack_into(&w, bits, 32, px.len(), &mut out);
+                assert_eq!(out, unpack(&w, bits, 32, px.len()), "{bits} bits");
+                assert_eq!(out, px, "{bits} bits");
+            }
+        }
     }
 
     #[test]

@@ -608,6 +608,8 @@ pub async fn shoot(
     // Sums per view, added up in view order at the end, so the result does not depend on the
     // order the schedule delivers the bands in (floating-point sums are not associative).
     let mut by_view = vec![IdSums::default(); views.len()];
+    // The IDs of the readback message being summed, one buffer for all of them.
+    let mut ids = Vec::new();
     let mut coordinator = (g == 0).then(|| Coordinator::new(views.len(), renderers, s.gps));
     if let Some(c) = coordinator.as_mut() {
         gp.phase("renderer setup");
@@ -684,7 +686,8 @@ pub async fn shoot(
             }
             Event::Band { view } => {
                 gp.phase("accumulate");
-                let count = accumulate(gp, &s, &views[view], &m, &mut by_view[view]).await?;
+                let sums = &mut by_view[view];
+                let count = accumulate(gp, (&s, &views[view]), &m, sums, &mut ids).await?;
                 if let Some(items) = items {
                     keep_item_buffer(items, &views[view], &m, &s);
                 }
@@ -1127,13 +1130,14 @@ async fn write_w_table(gp: &Gp, s: &Setting, v: &View, board: u32, n: u32) {
 }
 
 /// Add the delta form factors of one readback message of this GP's band of view `v` to the
-/// view's sums per ID; the pixels it held.
+/// view's sums per ID; the pixels it held. `ids` is a buffer for the message's IDs, kept from
+/// one message to the next.
 async fn accumulate(
     gp: &Gp,
-    s: &Setting,
-    v: &View,
+    (s, v): (&Setting, &View),
     m: &Message,
     sums: &mut IdSums,
+    ids: &mut Vec<u64>,
 ) -> Result<u64, ProgramError> {
     let Payload::Pixels {
         rect, bits, words, ..
@@ -1142,7 +1146,7 @@ async fn accumulate(
         return Err(unexpected(gp.index(), m));
     };
     let count = (rect.width * rect.height) as usize;
-    let ids = readback::unpack(words, *bits, s.word_bits, count);
+    readback::unpack_into(words, *bits, s.word_bits, count, ids);
     gp.work(|cost| {
         cost.add(Op::FfAccumulatePerPixel, count as u64);
         // Row by row, in pixel order (the sums' order of addition is the result's): no

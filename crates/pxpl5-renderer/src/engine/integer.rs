@@ -655,12 +655,23 @@ impl PixelEngine for IntegerEngine {
 
     fn read_values(&self, field: Field, rect: Rect) -> Vec<u64> {
         let a = Access::of(field);
-        let per_row = self.geometry.groups_per_row;
+        let (x0, x1) = (rect.x as usize, (rect.x + rect.width) as usize);
         let mut out = Vec::with_capacity((rect.width * rect.height) as usize);
+        // A row's pixels are consecutive in a limb (pixel px of array row py is at
+        // `py * width + px`): a row at a time, without an address per pixel (one cost 17
+        // instructions a pixel of a hemicube's ID readback).
         for py in rect.y as usize..(rect.y + rect.height) as usize {
-            for px in rect.x as usize..(rect.x + rect.width) as usize {
-                let p = (py * per_row + px / 64) * 64 + px % 64;
-                out.push(self.get(a, p));
+            let at = py * self.geometry.width;
+            let lo = &self.limbs[a.limb][at + x0..at + x1];
+            if a.straddles() {
+                let hi = &self.limbs[a.limb + 1][at + x0..at + x1];
+                out.extend(
+                    lo.iter()
+                        .zip(hi)
+                        .map(|(&l, &h)| ((l >> a.shift) | (h << (64 - a.shift))) & a.mask),
+                );
+            } else {
+                out.extend(lo.iter().map(|&l| (l >> a.shift) & a.mask));
             }
         }
         out
