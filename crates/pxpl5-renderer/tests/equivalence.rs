@@ -257,6 +257,108 @@ fn receivers() -> impl Strategy<Value = Vec<Command>> {
     from_an_origin(prop::collection::vec(step, 1..40))
 }
 
+/// Receivers whose edges each hold on a half-plane or inside an ellipse, as a hemisphere
+/// receiver's edge whose side holds the zenith (`pos OR inside`, the sparse level narrowing the
+/// rows it solves by the half-plane and the ellipse's box), the ellipse on or near the board at
+/// a random origin, with other ops now and then; each receiver's enable then read by a write.
+fn ellipse_receivers() -> impl Strategy<Value = Vec<Command>> {
+    let ellipse = (
+        -30i64..100,
+        -20i64..40,
+        1i64..40,
+        1i64..40,
+        -60i64..60,
+        0i64..20_000,
+        any::<bool>(),
+    );
+    let edge = (
+        (coefficient(), coefficient(), coefficient()),
+        ellipse,
+        prop_oneof![4 => Just(LogicOp::OR), 1 => logic_op()],
+        any::<bool>(),
+    );
+    let receiver = (prop::collection::vec(edge, 1..6), any::<bool>());
+    (0u32..300, 0u32..300, prop::collection::vec(receiver, 1..5)).prop_map(|(ox, oy, rs)| {
+        let exact = |expr: QeeExpr| {
+            let w = expr.sign_window((ox, oy), 64, 16);
+            if w.bits <= 64 {
+                w
+            } else {
+                Window { shift: 0, bits: 64 }
+            }
+        };
+        let mut v = vec![Command::SetOrigin { x: ox, y: oy }];
+        for (edges, from_all) in rs {
+            v.push(if from_all {
+                Command::enable_all()
+            } else {
+                Command::Logic {
+                    dst: Bit::Enable,
+                    a: Bit::Flag(3),
+                    b: Bit::Flag(3),
+                    op: LogicOp::A,
+                }
+            });
+            for ((a, b, c), (cx, cy, kx, ky, e, r2, negated), op, into_enable) in edges {
+                let (cx, cy) = (cx + i64::from(ox), cy + i64::from(oy));
+                // V = r2 - (kx (x - cx)^2 + e (x - cx)(y - cy) + ky (y - cy)^2), or -V.
+                let q = [
+                    2 * kx * cx + e * cy,
+                    2 * ky * cy + e * cx,
+                    r2 - kx * cx * cx - e * cx * cy - ky * cy * cy,
+                    -kx,
+                    -e,
+                    -ky,
+                ];
+                let q = QeeExpr::from_raw(if negated { q.map(|k| -k) } else { q });
+                let l = QeeExpr::from_raw([a, b, c, 0, 0, 0]);
+                v.push(Command::QeeSign {
+                    expr: l,
+                    window: exact(l),
+                    dst: Bit::Flag(0),
+                    combine: LogicOp::B,
+                });
+                v.push(Command::QeeSign {
+                    expr: q,
+                    window: exact(q),
+                    dst: Bit::Flag(1),
+                    combine: LogicOp::B,
+                });
+                v.push(Command::Logic {
+                    dst: Bit::Flag(2),
+                    a: Bit::Flag(0),
+                    b: Bit::Flag(1),
+                    op,
+                });
+                v.push(if into_enable {
+                    Command::Logic {
+                        dst: Bit::Enable,
+                        a: Bit::Enable,
+                        b: Bit::Flag(2),
+                        op: LogicOp::AND,
+                    }
+                } else {
+                    Command::Logic {
+                        dst: Bit::Enable,
+                        a: Bit::Flag(2),
+                        b: Bit::Enable,
+                        op: LogicOp::AND,
+                    }
+                });
+            }
+            v.push(Command::WriteConst {
+                dst: Field {
+                    offset: 8,
+                    bits: 13,
+                    signed: false,
+                },
+                value: v.len() as u64 & 0x1fff,
+            });
+        }
+        v
+    })
+}
+
 /// `commands` after a random region origin.
 fn from_an_origin(
     commands: impl Strategy<Value = Vec<Command>>,
@@ -286,6 +388,16 @@ proptest! {
 
     #[test]
     fn sparse_agrees_with_bit_on_receiver_streams(commands in receivers()) {
+        run_both(&small(), &commands)?;
+    }
+
+    #[test]
+    fn sparse_follows_integer_on_ellipse_receivers(commands in ellipse_receivers()) {
+        sparse_follows_integer(&small(), &commands)?;
+    }
+
+    #[test]
+    fn sparse_agrees_with_bit_on_ellipse_receivers(commands in ellipse_receivers()) {
         run_both(&small(), &commands)?;
     }
 }
