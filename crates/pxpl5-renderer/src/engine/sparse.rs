@@ -848,6 +848,12 @@ struct Concave {
     k: [i128; 3],
 }
 
+/// Bounds under which [`Concave::at`] cannot overflow i128: |k| < 2^96 and 0 <= t < 2^14 give
+/// |k2 t^2| < 2^124 and |k1 t| < 2^110. Overflow-checked i128 products are library calls (they
+/// made the ellipse boxes cost 860 instructions a call); these keep the evaluations plain.
+const COEFFICIENT_LIMIT: i128 = 1 << 96;
+const T_LIMIT: usize = 1 << 14;
+
 impl Concave {
     /// The discriminant in x of `(p + q t) x + r x^2 + (c + s t + u t^2)` as a function of t:
     /// `(p + q t)^2 - 4 r (c + s t + u t^2)`, whose leading coefficient `q^2 - 4 r u` is
@@ -860,41 +866,41 @@ impl Concave {
             .checked_mul(2)?
             .checked_sub(r4.checked_mul(s)?)?;
         let k0 = p.checked_mul(p)?.checked_sub(r4.checked_mul(c)?)?;
-        (k2 < 0).then_some(Concave { k: [k2, k1, k0] })
+        let small = [k2, k1, k0].iter().all(|k| k.abs() < COEFFICIENT_LIMIT);
+        (k2 < 0 && small).then_some(Concave { k: [k2, k1, k0] })
     }
 
-    fn at(&self, t: usize) -> Option<i128> {
+    /// The value at `t < T_LIMIT`, exact by the bounds above.
+    fn at(&self, t: usize) -> i128 {
+        debug_assert!(t < T_LIMIT);
         let [k2, k1, k0] = self.k;
         let t = t as i128;
-        k2.checked_mul(t)?
-            .checked_add(k1)?
-            .checked_mul(t)?
-            .checked_add(k0)
+        (k2 * t + k1) * t + k0
     }
 
     /// The first and last t of `lo ..= hi` where the value is at least 0 (`Some(None)`: none
-    /// is); `None` if an evaluation overflows. Rising up to the integer maximum t*, the first
-    /// t at which `f(t + 1) - f(t) = k2 (2 t + 1) + k1` is negative, and falling after it, so
-    /// each end is found by bisection.
+    /// is); `None` if `hi` is beyond [`T_LIMIT`]. Rising up to the integer maximum t*, the
+    /// first t at which `f(t + 1) - f(t) = k2 (2 t + 1) + k1` is negative, and falling after
+    /// it, so each end is found by bisection.
     fn at_least_zero(&self, lo: usize, hi: usize) -> Option<Option<(usize, usize)>> {
+        if hi >= T_LIMIT {
+            return None;
+        }
         let [k2, k1, _] = self.k;
         // k2 (2t + 1) + k1 < 0  <=>  2 k2 t < -k1 - k2  <=>  t > (-k1 - k2) / (2 k2) (k2 < 0),
         // so t* = floor(n / m) + 1 with n = -k1 - k2, m = 2 k2 < 0: floor(n / m) = floor(-n / -m).
-        let n = k1.checked_neg()?.checked_sub(k2)?;
-        let m = k2.checked_mul(2)?;
-        let star = n
-            .checked_neg()?
-            .div_euclid(m.checked_neg()?)
-            .checked_add(1)?;
+        // No overflow: |k| < 2^96.
+        let (n, m) = (-k1 - k2, 2 * k2);
+        let star = (-n).div_euclid(-m) + 1;
         let peak = star.clamp(lo as i128, hi as i128) as usize;
-        if self.at(peak)? < 0 {
+        if self.at(peak) < 0 {
             return Some(None);
         }
         // The first t of lo ..= peak with f >= 0 (f rises there), the last of peak ..= hi.
         let (mut l, mut h) = (lo, peak);
         while l < h {
             let mid = l + (h - l) / 2;
-            if self.at(mid)? >= 0 {
+            if self.at(mid) >= 0 {
                 h = mid;
             } else {
                 l = mid + 1;
@@ -904,7 +910,7 @@ impl Concave {
         let (mut l, mut h) = (peak, hi);
         while l < h {
             let mid = l + (h - l).div_ceil(2);
-            if self.at(mid)? >= 0 {
+            if self.at(mid) >= 0 {
                 l = mid;
             } else {
                 h = mid - 1;
@@ -1192,7 +1198,7 @@ mod tests {
             };
             let lo = draw(&mut r, 0, 150) as usize;
             let hi = lo + draw(&mut r, 0, 100) as usize;
-            let meets: Vec<usize> = (lo..=hi).filter(|&t| q.at(t).unwrap() >= 0).collect();
+            let meets: Vec<usize> = (lo..=hi).filter(|&t| q.at(t) >= 0).collect();
             let want = meets.first().map(|&f| (f, *meets.last().unwrap()));
             assert_eq!(
                 q.at_least_zero(lo, hi),
