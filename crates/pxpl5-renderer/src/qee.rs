@@ -98,6 +98,58 @@ pub fn mask(bits: u32) -> u64 {
     }
 }
 
+/// 2^e, exactly: the same value as `(e as f64).exp2()` (glibc's exp2 is exact at integers),
+/// without a library call. Quantising a GP's coefficients takes several per receiver.
+#[inline]
+pub fn pow2(e: i32) -> f64 {
+    if (-1022..=1023).contains(&e) {
+        f64::from_bits(((e + 1023) as u64) << 52)
+    } else {
+        f64::from(e).exp2()
+    }
+}
+
+/// `x.round()` (to nearest, halves away from zero), bit for bit, without the library call that
+/// it is on x86-64's baseline. Exact: below 2^52 the truncation `t` is exact through i64 and so
+/// is `x - t`; at and above it every float is an integer.
+#[inline]
+pub fn round(x: f64) -> f64 {
+    if x.is_nan() || x.abs() >= 4_503_599_627_370_496.0 {
+        // Integers, infinities and NaN: round changes none of them.
+        return x;
+    }
+    let t = (x as i64) as f64;
+    let d = x - t;
+    let r = if d >= 0.5 {
+        t + 1.0
+    } else if d <= -0.5 {
+        t - 1.0
+    } else {
+        t
+    };
+    // -0.3 rounds to -0.
+    r.copysign(x)
+}
+
+/// `x.log2().floor()` as an integer, for a positive finite x: the float's exponent, without the
+/// two library calls, where its mantissa is far enough from 1 and from 2 that glibc's log2
+/// (within an ulp) floors to it too; at other values, that computation itself.
+#[inline]
+pub fn floor_log2(x: f64) -> i32 {
+    let bits = x.to_bits();
+    let exponent = ((bits >> 52) & 0x7ff) as i32;
+    let mantissa = bits & ((1 << 52) - 1);
+    // Guard bands of 2^-30 of the mantissa: log2 there is at least 2^-31 from an integer,
+    // thousands of ulps.
+    let guard = 1u64 << 22;
+    let normal = exponent != 0 && exponent != 0x7ff && (bits >> 63) == 0;
+    if normal && mantissa >= guard && mantissa < (1 << 52) - guard {
+        exponent - 1023
+    } else {
+        x.log2().floor() as i32
+    }
+}
+
 impl QeeExpr {
     /// The linear expression A x + B y + C, already in raw units.
     pub fn linear(a: i64, b: i64, c: i64) -> QeeExpr {
@@ -112,7 +164,7 @@ impl QeeExpr {
     /// Quantise real coefficients `[A, B, C, D, E, F]` to `format`, rounding to nearest (halves
     /// away from zero). An error names the coefficient that is not finite or does not fit.
     pub fn quantise(coefficients: [f64; 6], format: FixedFormat) -> Result<QeeExpr, QuantiseError> {
-        let scale = (format.frac_bits as f64).exp2();
+        let scale = pow2(format.frac_bits as i32);
         let max_raw = (1i64 << (format.int_bits + format.frac_bits)) - 1;
         let mut raw = [0i64; 6];
         for (i, &value) in coefficients.iter().enumerate() {
@@ -120,7 +172,7 @@ impl QeeExpr {
             if !value.is_finite() {
                 return Err(QuantiseError::NotFinite { name, value });
             }
-            let r = (value * scale).round();
+            let r = round(value * scale);
             if r > max_raw as f64 || r < -(max_raw as f64) - 1.0 {
                 return Err(QuantiseError::OutOfRange {
                     name,
@@ -367,6 +419,59 @@ mod tests {
         // The extremes of the format are representable.
         let max = 8192.0 - 1.0 / 262144.0;
         assert!(QeeExpr::quantise([max, -8192.0, 0.0, 0.0, 0.0, 0.0], FMT).is_ok());
+    }
+
+    /// The library-free `pow2`, `round` and `floor_log2` give the library's results bit for
+    /// bit: every exponent, halves and near-halves, zeros, extremes, values just off powers of
+    /// two, and a sweep of magnitudes.
+    #[test]
+    fn fixed_point_helpers_match_the_library() {
+        for e in -1100..1100 {
+            assert_eq!(pow2(e).to_bits(), f64::from(e).exp2().to_bits(), "2^{e}");
+        }
+        let mut values = vec![
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.5,
+            2.5,
+            -2.5,
+            0.49999999999999994,
+            -0.49999999999999994,
+            4503599627370495.5,
+            4503599627370496.0,
+            9007199254740993.0,
+            f64::MAX,
+            f64::MIN_POSITIVE,
+            5e-324,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        for _ in 0..20_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let m = (x >> 11) as f64 / (1u64 << 53) as f64;
+            let v = m * pow2((x % 160) as i32 - 60);
+            values.extend([v, -v, v.floor() + 0.5, f64::from_bits(v.to_bits() + 1)]);
+        }
+        for e in -1074..1024 {
+            let p = f64::from(e).exp2();
+            values.extend([
+                p,
+                f64::from_bits(p.to_bits() + 1),
+                f64::from_bits(p.to_bits() - 1),
+            ]);
+        }
+        for &v in &values {
+            assert_eq!(round(v).to_bits(), v.round().to_bits(), "round({v:e})");
+            if v > 0.0 && v.is_finite() {
+                assert_eq!(floor_log2(v), v.log2().floor() as i32, "floor_log2({v:e})");
+            }
+        }
+        assert!(round(f64::NAN).is_nan());
     }
 
     #[test]

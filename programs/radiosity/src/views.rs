@@ -17,7 +17,7 @@ use pxpl5_config::FixedFormat;
 use pxpl5_geom::DVec3;
 use pxpl5_geom::clip::clip_to_half_space_into;
 use pxpl5_geom::grid::Grid;
-use pxpl5_renderer::qee::substitute_affine;
+use pxpl5_renderer::qee::{floor_log2, pow2, substitute_affine};
 use pxpl5_renderer::{Bit, Cmp, Command, Field, LogicOp, QeeExpr, Window};
 
 /// The shooter's frame: a point, and orthonormal tangents t1, t2 with the normal n.
@@ -172,9 +172,9 @@ pub fn quantise_for_sign(c: [f64; 6], f: FixedFormat) -> Option<QeeExpr> {
     if !max.is_finite() || max == 0.0 {
         return None;
     }
-    let target = (f.int_bits as f64).exp2() * 0.99;
+    let target = pow2(f.int_bits as i32) * 0.99;
     // A power of two, so the scaling itself is exact.
-    let k = (target / max).log2().floor().exp2();
+    let k = pow2(floor_log2(target / max));
     QeeExpr::quantise(c.map(|x| x * k), f).ok()
 }
 
@@ -354,7 +354,7 @@ pub fn hemisphere_polygon(
     }
     // Depth: 1/rho = (n'.dir) / d' = a u + b v + c w.
     let (a, b, c) = (normal.x / d, normal.y / d, normal.z / d);
-    let depth_scale = f64::from(DEPTH_FRAC as i32 - format.frac_bits as i32).exp2();
+    let depth_scale = pow2(DEPTH_FRAC as i32 - format.frac_bits as i32);
     if depth == HemisphereDepth::StoredW {
         let lin = substitute_affine([a, b, 0.0, 0.0, 0.0, 0.0].map(|x| x * depth_scale), k, mo);
         let lin = QeeExpr::quantise(lin, format).map_err(|_| Cull::Unrepresentable)?;
@@ -781,7 +781,7 @@ pub fn hemicube_polygon(
     // 1/Z = (n'_x X/Z + n'_y Y/Z + n'_z) / d' in face axes; nearer = larger; X/Z = (s + 0.5)/half - 1.
     let (a, b, c) = (normal.dot(r) / d, normal.dot(u) / d, normal.dot(fw) / d);
     let (k, m) = grid.affine();
-    let depth_scale = f64::from(DEPTH_FRAC as i32 - format.frac_bits as i32).exp2();
+    let depth_scale = pow2(DEPTH_FRAC as i32 - format.frac_bits as i32);
     let lin = substitute_affine([a, b, c, 0.0, 0.0, 0.0].map(|x| x * depth_scale), k, m);
     let depth = QeeExpr::quantise(lin, format).map_err(|_| Cull::Unrepresentable)?;
     push_depth_and_id(&mut out, depth, id, f);
