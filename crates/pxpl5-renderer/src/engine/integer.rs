@@ -452,6 +452,14 @@ fn for_each_run(mut m: u64, mut f: impl FnMut(usize, usize)) {
     }
 }
 
+/// The 64 pixels' words of the group whose first pixel is `base`, in one limb.
+#[inline(always)]
+fn group_words(limb: &mut [u64], base: usize) -> &mut [u64; 64] {
+    (&mut limb[base..base + 64])
+        .try_into()
+        .expect("a group is 64 pixels")
+}
+
 /// Call `f` with the index of every set bit of `m`, lowest first.
 #[inline]
 fn for_each_bit(mut m: u64, mut f: impl FnMut(u32)) {
@@ -498,7 +506,19 @@ impl PixelEngine for IntegerEngine {
                 // Gated writes: only enabled pixels change, so only they are evaluated.
                 QeeSink::Store { dst } => {
                     let a = Access::of(dst);
-                    for_each_bit(en, |i| self.set(a, base + i as usize, cut(i)));
+                    if a.straddles() {
+                        for_each_bit(en, |i| self.set(a, base + i as usize, cut(i)));
+                        continue;
+                    }
+                    // A field inside one limb (a depth): the group's 64 words as one array, so
+                    // no pixel pays for bounds checks or the straddle test (they were about a
+                    // third of a hemicube's depth stores and compares).
+                    let clear = !(a.mask << a.shift);
+                    let words = group_words(&mut self.limbs[a.limb], base);
+                    for_each_bit(en, |i| {
+                        let w = &mut words[i as usize & 63];
+                        *w = (*w & clear) | ((cut(i) & a.mask) << a.shift);
+                    });
                 }
                 QeeSink::Add { dst } => {
                     let a = Access::of(dst);
@@ -523,11 +543,25 @@ impl PixelEngine for IntegerEngine {
                         // a depth test's instructions).
                         let (mut lt, mut eq) = (0u64, 0u64);
                         let value = |raw: u64| extend(raw, field.bits, field.signed) as i64;
-                        for_each_bit(need, |i| {
-                            let (lhs, rhs) = (value(cut(i)), value(self.get(a, base + i as usize)));
-                            lt |= u64::from(lhs < rhs) << i;
-                            eq |= u64::from(lhs == rhs) << i;
-                        });
+                        if a.straddles() {
+                            for_each_bit(need, |i| {
+                                let lhs = value(cut(i));
+                                let rhs = value(self.get(a, base + i as usize));
+                                lt |= u64::from(lhs < rhs) << i;
+                                eq |= u64::from(lhs == rhs) << i;
+                            });
+                        } else {
+                            // Inside one limb, as a store.
+                            let words: &[u64; 64] = (&self.limbs[a.limb][base..base + 64])
+                                .try_into()
+                                .expect("a group is 64 pixels");
+                            for_each_bit(need, |i| {
+                                let lhs = value(cut(i));
+                                let rhs = value((words[i as usize & 63] >> a.shift) & a.mask);
+                                lt |= u64::from(lhs < rhs) << i;
+                                eq |= u64::from(lhs == rhs) << i;
+                            });
+                        }
                         cmp.from_lt_eq(lt, eq) & need
                     } else {
                         let mut result = 0u64;
