@@ -325,6 +325,10 @@ pub(crate) struct Pixels {
     /// streams, reused by every command.
     enabled: Vec<u32>,
     enabled_valid: bool,
+    /// Set when a command combined into enable by an op that keeps 0 at 0 over a valid list
+    /// (a receiver's depth test): enable only lost pixels, so the list holds every enabled
+    /// group and is filtered, not made anew from the whole board, when next needed.
+    enabled_superset: bool,
     all_groups: Vec<u32>,
     streams: Streams,
 }
@@ -362,6 +366,7 @@ impl Board {
             backing_store: BTreeMap::new(),
             enabled: Vec::new(),
             enabled_valid: false,
+            enabled_superset: false,
             all_groups: (0..geometry.groups as u32).collect(),
             streams: Streams::new(&crate::QeeExpr::default(), (0, 0), 0, 0),
         };
@@ -723,17 +728,26 @@ impl Pixels {
             _ => None,
         };
         let every_group = matches!(writes, Some(Some(op)) if !op.keeps_zero());
-        if writes.is_some() && !every_group && !self.enabled_valid {
-            self.engine
-                .get()
-                .registers()
-                .enabled_groups(&mut self.enabled);
-            self.enabled_valid = true;
+        if writes.is_some() && !every_group {
+            let regs = self.engine.get().registers();
+            if !self.enabled_valid {
+                regs.enabled_groups(&mut self.enabled);
+                self.enabled_valid = true;
+            } else if self.enabled_superset {
+                self.enabled.retain(|&g| regs.enable[g as usize] != 0);
+            }
+            self.enabled_superset = false;
         }
         // Enable changes only through a command whose destination it is; the list is made anew
-        // when a later command needs it.
+        // when a later command needs it, or filtered if the command could only clear pixels of
+        // the groups it listed.
         if cmd.writes_enable() {
-            self.enabled_valid = false;
+            match writes {
+                Some(Some(op)) if op.keeps_zero() && self.enabled_valid => {
+                    self.enabled_superset = true;
+                }
+                _ => self.enabled_valid = false,
+            }
         }
         if let Some((expr, _)) = cmd.qee() {
             let g = self.geometry;
