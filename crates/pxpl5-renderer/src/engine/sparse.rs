@@ -36,7 +36,9 @@
 //! half-plane (a hemicube receiver's edge), or outside a half-plane and an ellipse (a
 //! hemisphere receiver's edge whose side holds the zenith: `pos OR inside`, the ellipse's box
 //! found exactly from the discriminants of its rows and columns) narrows the box, each in turn,
-//! twice over. Materialising a flag replays its layers in order, as the commands would have.
+//! twice over; where every conjunct is exactly a half-plane, a row is its base's on one span,
+//! the half-planes' intersection. Materialising a flag replays its layers in order, as the
+//! commands would have.
 //! Both are exact: a row or column is left out only where a conjunct is false at every pixel of
 //! it, and every row is solved from the same expressions by the same row solver as `integer`'s
 //! (`integer::sign_row`).
