@@ -452,14 +452,6 @@ fn for_each_run(mut m: u64, mut f: impl FnMut(usize, usize)) {
     }
 }
 
-/// The 64 pixels' words of the group whose first pixel is `base`, in one limb.
-#[inline(always)]
-fn group_words(limb: &mut [u64], base: usize) -> &mut [u64; 64] {
-    (&mut limb[base..base + 64])
-        .try_into()
-        .expect("a group is 64 pixels")
-}
-
 /// Call `f` with the index of every set bit of `m`, lowest first.
 #[inline]
 fn for_each_bit(mut m: u64, mut f: impl FnMut(u32)) {
@@ -510,11 +502,11 @@ impl PixelEngine for IntegerEngine {
                         for_each_bit(en, |i| self.set(a, base + i as usize, cut(i)));
                         continue;
                     }
-                    // A field inside one limb (a depth): the group's 64 words as one array, so
-                    // no pixel pays for bounds checks or the straddle test (they were about a
-                    // third of a hemicube's depth stores and compares).
+                    // A field inside one limb (a depth): the group's 64 words as one slice, indexed
+                    // below 64, so no pixel pays for bounds checks or the straddle test (they
+                    // were about a third of a hemicube's depth stores and compares).
                     let clear = !(a.mask << a.shift);
-                    let words = group_words(&mut self.limbs[a.limb], base);
+                    let words = &mut self.limbs[a.limb][base..base + 64];
                     for_each_bit(en, |i| {
                         let w = &mut words[i as usize & 63];
                         *w = (*w & clear) | ((cut(i) & a.mask) << a.shift);
@@ -552,9 +544,7 @@ impl PixelEngine for IntegerEngine {
                             });
                         } else {
                             // Inside one limb, as a store.
-                            let words: &[u64; 64] = (&self.limbs[a.limb][base..base + 64])
-                                .try_into()
-                                .expect("a group is 64 pixels");
+                            let words = &self.limbs[a.limb][base..base + 64];
                             for_each_bit(need, |i| {
                                 let lhs = value(cut(i));
                                 let rhs = value((words[i as usize & 63] >> a.shift) & a.mask);
