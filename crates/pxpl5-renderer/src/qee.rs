@@ -151,6 +151,20 @@ pub fn floor_log2(x: f64) -> i32 {
 }
 
 impl QeeExpr {
+    /// `r2 - (kx (x - cx)^2 + e (x - cx) (y - cy) + ky (y - cy)^2)` in raw units: at least 0
+    /// inside an ellipse about (cx, cy) when kx, ky > 0 and 4 kx ky > e^2 (a conic for tests
+    /// and for programs that draw one).
+    pub fn ellipse((cx, cy): (i64, i64), (kx, e, ky): (i64, i64, i64), r2: i64) -> QeeExpr {
+        QeeExpr::from_raw([
+            2 * kx * cx + e * cy,
+            2 * ky * cy + e * cx,
+            r2 - kx * cx * cx - e * cx * cy - ky * cy * cy,
+            -kx,
+            -e,
+            -ky,
+        ])
+    }
+
     /// The linear expression A x + B y + C, already in raw units.
     pub fn linear(a: i64, b: i64, c: i64) -> QeeExpr {
         QeeExpr {
@@ -472,6 +486,16 @@ mod tests {
             }
         }
         assert!(round(f64::NAN).is_nan());
+    }
+
+    /// `QeeExpr::ellipse` is r2 at its centre, and falls by the form's value away from it.
+    #[test]
+    fn ellipse_is_r2_less_the_form() {
+        let q = QeeExpr::ellipse((40, -7), (3, -2, 5), 1000);
+        assert_eq!(q.eval(40, -7), 1000);
+        assert_eq!(q.eval(41, -7), 1000 - 3);
+        assert_eq!(q.eval(40, -5), 1000 - 5 * 4);
+        assert_eq!(q.eval(42, -6), 1000 - (3 * 4 - 2 * 2 + 5));
     }
 
     #[test]

@@ -301,15 +301,8 @@ fn ellipse_receivers() -> impl Strategy<Value = Vec<Command>> {
             });
             for ((a, b, c), (cx, cy, kx, ky, e, r2, negated), op, into_enable) in edges {
                 let (cx, cy) = (cx + i64::from(ox), cy + i64::from(oy));
-                // V = r2 - (kx (x - cx)^2 + e (x - cx)(y - cy) + ky (y - cy)^2), or -V.
-                let q = [
-                    2 * kx * cx + e * cy,
-                    2 * ky * cy + e * cx,
-                    r2 - kx * cx * cx - e * cx * cy - ky * cy * cy,
-                    -kx,
-                    -e,
-                    -ky,
-                ];
+                // The ellipse's inside, or (negated) its outside.
+                let q = QeeExpr::ellipse((cx, cy), (kx, e, ky), r2).raw();
                 let q = QeeExpr::from_raw(if negated { q.map(|k| -k) } else { q });
                 let l = QeeExpr::from_raw([a, b, c, 0, 0, 0]);
                 v.push(Command::QeeSign {

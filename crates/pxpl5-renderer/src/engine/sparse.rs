@@ -1286,14 +1286,7 @@ mod tests {
             );
             let r2 = draw(&mut r, -100, 300_000);
             let negated = draw(&mut r, 0, 1) == 1;
-            let q = [
-                2 * kx * cx + e * cy,
-                2 * ky * cy + e * cx,
-                r2 - kx * cx * cx - e * cx * cy - ky * cy * cy,
-                -kx,
-                -e,
-                -ky,
-            ];
+            let q = QeeExpr::ellipse((cx, cy), (kx, e, ky), r2).raw();
             let expr = QeeExpr::from_raw(if negated { q.map(|k| -k) } else { q });
             let t = SignTerm {
                 streams: Streams::for_rows(&expr, (ox as u32, oy as u32)),
