@@ -114,7 +114,7 @@ pub fn unpack(words: &[u64], bits: u32, word_bits: u32, count: usize) -> Vec<u64
 
 /// [`unpack`] into `out`, whose contents are replaced: a GP that reads back message after
 /// message keeps one buffer (a fresh zeroed one per message was 2.5 % of a hemicube run's
-/// instructions, most of them in `calloc`).
+/// instructions, most of them zeroing it).
 pub fn unpack_into(words: &[u64], bits: u32, word_bits: u32, count: usize, out: &mut Vec<u64>) {
     // Every pixel is written below, so only a buffer that grows is filled first (zeroing it
     // per message cost 8 instructions a pixel).
