@@ -519,10 +519,13 @@ impl SparseEngine {
         let gpr = g.groups_per_row;
         plane[..area.y0 * gpr].fill(0);
         plane[(area.y1 + 1) * gpr..].fill(0);
-        if let Some(hs) = steps
-            .iter()
-            .map(|s| s.exact_half_plane(&ep.signs))
-            .collect::<Option<Vec<_>>>()
+        // Every step exactly its half-plane: one span a row.
+        let exact = |b: &Bound| match *b {
+            Bound::Half(h, true) => Some(h),
+            _ => None,
+        };
+        if bounds.len() == steps.len()
+            && let Some(hs) = bounds.iter().map(exact).collect::<Option<Vec<_>>>()
         {
             return half_plane_rows(&ep.base, &hs, area, plane, gpr);
         }
@@ -711,27 +714,15 @@ impl Step {
         side(&signs[self.first as usize], positive)
     }
 
-    /// The half-plane this step is, exactly, where it is a function of one linear test
-    /// unwrapped on the board: the test's ones, or its zeros. (A step of one test is
-    /// `op(p, 0)`: `Step::of` makes its op ignore the second input.)
-    fn exact_half_plane(&self, signs: &[SignTerm]) -> Option<[i64; 3]> {
-        if self.first != self.second {
-            return None;
-        }
-        match (eval(self.op, false, false), eval(self.op, true, false)) {
-            (false, true) => side(&signs[self.first as usize], true),
-            (true, false) => side(&signs[self.first as usize], false),
-            _ => None,
-        }
-    }
-
     /// The region outside which this step is false: its half-plane, or else, where the first
     /// test's value p leaves the step false for one value q0 of the second (`op(p, q0)` = 0 for
     /// p = p0), the first test's half-plane of !p0 together with the box of `area` that holds
     /// the pixels of the second's ellipse of !q0.
     fn bound(&self, signs: &[SignTerm], area: Area) -> Option<Bound> {
         if let Some(h) = self.half_plane(signs) {
-            return Some(Bound::Half(h));
+            // A step of one test is `op(p, 0)` (`Step::of`), neither constant: then it is p or
+            // !p, exactly its half-plane.
+            return Some(Bound::Half(h, self.first == self.second));
         }
         if self.first == self.second || signs[self.second as usize].checks {
             return None;
@@ -768,8 +759,9 @@ fn side(t: &SignTerm, positive: bool) -> Option<[i64; 3]> {
 
 /// A region outside which a step is false, in board pixel coordinates.
 enum Bound {
-    /// `k0 + kx px + ky py >= 0`.
-    Half([i64; 3]),
+    /// `k0 + kx px + ky py >= 0`; whether the step is exactly that half-plane, not only false
+    /// outside it.
+    Half([i64; 3], bool),
     /// The half-plane, or the box that holds an ellipse's pixels (`None`: it has none).
     HalfOrBox([i64; 3], Option<Area>),
 }
@@ -779,7 +771,7 @@ impl Bound {
     /// is.
     fn narrow(&self, area: Area) -> Option<Area> {
         match self {
-            Bound::Half(h) => narrow(*h, area),
+            Bound::Half(h, _) => narrow(*h, area),
             Bound::HalfOrBox(h, e) => {
                 let e = e.and_then(|e| e.meet(area));
                 match (narrow(*h, area), e) {
