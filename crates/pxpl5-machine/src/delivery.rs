@@ -11,10 +11,11 @@ use std::collections::BTreeMap;
 
 use pxpl5_ring::MessageId;
 
-use pxpl5_sim::Tick;
+use pxpl5_sim::{SeqMap, Tick};
 
 use crate::critical::Profile;
 use crate::gp::{Message, Payload, Unit};
+use crate::topology::Positions;
 
 /// A sender and a receiver: the pair between which send order is kept.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
@@ -84,26 +85,62 @@ struct RouteState {
 }
 
 /// Every message between sending and handing over.
-#[derive(Default)]
 pub(crate) struct Delivery {
-    in_flight: BTreeMap<MessageId, InFlight>,
-    routes: BTreeMap<Route, RouteState>,
+    /// By message id (the ring numbers messages in the order it accepts them).
+    in_flight: SeqMap<InFlight>,
+    /// Each route's state, by the sender's and the receiver's ring nodes: `routes[from][to]`, a
+    /// sender's row made at its first send. (A `BTreeMap` by route took about 320 host
+    /// instructions a look-up, two a message.)
+    routes: Vec<Vec<RouteState>>,
+    positions: Positions,
+    nodes: usize,
 }
 
 impl Delivery {
+    /// Delivery between the units at `positions`, `nodes` ring nodes in all.
+    pub fn new(positions: Positions, nodes: usize) -> Delivery {
+        Delivery {
+            in_flight: SeqMap::new(),
+            routes: Vec::new(),
+            positions,
+            nodes,
+        }
+    }
+
+    /// The state of `route`, made at first use.
+    ///
+    /// # Panics
+    /// If a unit of the route is not on the ring: the machine offers the ring only messages
+    /// between its units.
+    fn route(&mut self, route: Route) -> &mut RouteState {
+        let node = |u: Unit| match self.positions.get(u) {
+            Some(n) => n.0 as usize,
+            None => panic!("message on route {route:?}: {u} is not on the ring"),
+        };
+        let (from, to) = (node(route.from), node(route.to));
+        if self.routes.len() <= from {
+            self.routes.resize_with(from + 1, Vec::new);
+        }
+        let row = &mut self.routes[from];
+        if row.is_empty() {
+            row.resize_with(self.nodes, RouteState::default);
+        }
+        &mut row[to]
+    }
+
     /// The sequence number the next message on `route` will carry (the ring passes it through as
     /// the message's tag).
-    pub fn next_seq(&self, route: Route) -> u64 {
-        self.routes.get(&route).map_or(0, |r| r.next_send)
+    pub fn next_seq(&mut self, route: Route) -> u64 {
+        self.route(route).next_send
     }
 
     /// The ring accepted message `id` of `route`, numbered [`Delivery::next_seq`].
     pub fn sent(&mut self, id: MessageId, route: Route, payload: Payload, sent: Sent) {
-        let state = self.routes.entry(route).or_default();
+        let state = self.route(route);
         let seq = state.next_send;
         state.next_send += 1;
         self.in_flight.insert(
-            id,
+            id.0,
             InFlight {
                 route,
                 seq,
@@ -113,13 +150,13 @@ impl Delivery {
         );
     }
 
-    /// The ring delivered message `id` at `at`: returns its route, and the messages now due to
-    /// their receiver in send order (none if it overtook an earlier one; several if it was the one
-    /// they waited for).
+    /// The ring delivered message `id` at `at`: returns its route, and appends to `due` the
+    /// messages now due to their receiver in send order (none if it overtook an earlier one;
+    /// several if it was the one they waited for).
     ///
     /// # Panics
     /// If the ring delivers a message it was never given: a simulator bug.
-    pub fn arrived(&mut self, id: MessageId, at: Tick) -> (Route, Vec<Arrival>) {
+    pub fn arrived(&mut self, id: MessageId, at: Tick, due: &mut Vec<Arrival>) -> Route {
         let InFlight {
             route,
             seq,
@@ -127,21 +164,20 @@ impl Delivery {
             sent,
         } = self
             .in_flight
-            .remove(&id)
+            .remove(id.0)
             .unwrap_or_else(|| panic!("ring delivered unknown message {id} at {at}"));
         let message = Message {
             from: route.from,
             payload,
             at,
         };
-        let state = self.routes.entry(route).or_default();
+        let state = self.route(route);
         let arrival = Arrival {
             id,
             to: route.to,
             message,
             sent,
         };
-        let mut due = Vec::new();
         // In order (nearly always): handed over at once, not through `held` (an insert and a
         // remove of a 500-byte arrival, with its critical path, per message).
         if seq == state.next_deliver {
@@ -154,7 +190,7 @@ impl Delivery {
             state.next_deliver += 1;
             due.push(a);
         }
-        (route, due)
+        route
     }
 
     /// Whether no message is on the ring.

@@ -85,6 +85,8 @@ pub struct Machine {
     frame: FrameBufferImage,
     events: EventQueue<Event>,
     delivery: Delivery,
+    /// Arrivals due to their receivers, a buffer kept across deliveries.
+    due: Vec<Arrival>,
     now: Tick,
     options: RunOptions,
     recorder: Recorder,
@@ -158,6 +160,7 @@ impl Machine {
         let mut categories = Categories::new();
         let fixed = Fixed::new(&mut categories);
         let computing = categories.get("GP computing", Resource::Gp);
+        let delivery = Delivery::new(positions.clone(), units.len());
         Ok(Machine {
             gp_phase: vec![computing; cfg.gp.count as usize],
             phase_cats: Vec::new(),
@@ -175,7 +178,8 @@ impl Machine {
             renderers,
             frame: FrameBufferImage::new(fb.0, fb.1),
             events: EventQueue::new(),
-            delivery: Delivery::default(),
+            delivery,
+            due: Vec::new(),
             now: Tick::ZERO,
             options,
             recorder,
@@ -440,11 +444,15 @@ impl Machine {
 
     /// A message arrived: hand it (and any held successors) to the receiver in send order.
     fn deliver(&mut self, d: pxpl5_ring::Delivery) -> Result<(), RunError> {
-        let (route, due) = self.delivery.arrived(d.id, d.delivered);
+        // The buffer of due arrivals is the machine's, kept across deliveries (a `Vec` a
+        // delivery was an allocation a message).
+        let mut due = std::mem::take(&mut self.due);
+        let route = self.delivery.arrived(d.id, d.delivered, &mut due);
         self.recorder.message_delivered(&d, route.from, route.to);
-        for a in due {
+        for a in due.drain(..) {
             self.hand_over(a);
         }
+        self.due = due;
         Ok(())
     }
 

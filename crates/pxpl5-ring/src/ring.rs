@@ -6,7 +6,7 @@ use std::cell::{Cell, RefCell};
 use std::collections::BTreeMap;
 
 use pxpl5_config::RingConfig;
-use pxpl5_sim::{ClockDomain, Cycles, Tick};
+use pxpl5_sim::{ClockDomain, Cycles, SeqMap, Tick};
 
 use crate::engine::{self, Capture, Flow, Packet, Params, Queues, Token};
 use crate::stats::{ChannelStats, NodeStats, RingStats, TotalStats, ratio};
@@ -99,7 +99,8 @@ pub struct Ring {
     /// Due events by (clock, sequence number): deterministic order within a clock.
     events: BTreeMap<(u64, u64), Event>,
     next_seq: u64,
-    messages: BTreeMap<MessageId, Message>,
+    /// Messages from acceptance to consumption, by id (`MessageId`s are handed out in order).
+    messages: SeqMap<Message>,
     next_msg: u64,
     deliveries: Vec<Delivery>,
     chan: Vec<ChannelAcc>,
@@ -201,7 +202,7 @@ impl Ring {
             last_start: vec![0; n],
             events: BTreeMap::new(),
             next_seq: 0,
-            messages: BTreeMap::new(),
+            messages: SeqMap::new(),
             next_msg: 0,
             deliveries: Vec::new(),
             chan: vec![ChannelAcc::default(); cfg.channels as usize],
@@ -333,7 +334,7 @@ impl Ring {
         st.max_output_words = st.max_output_words.max(self.out_used[s as usize]);
         st.messages_sent += 1;
         self.messages.insert(
-            id,
+            id.0,
             Message {
                 src: s,
                 dst: d,
@@ -358,7 +359,7 @@ impl Ring {
         if id.0 >= self.next_msg {
             return Err(RingError::UnknownMessage { id });
         }
-        let Some(msg) = self.messages.get(&id) else {
+        let Some(msg) = self.messages.get(id.0) else {
             return Err(RingError::AlreadyConsumed { id });
         };
         if !msg.delivered {
@@ -374,7 +375,7 @@ impl Ring {
                  holds fewer words than message {id}"
             )
         });
-        self.messages.remove(&id);
+        self.messages.remove(id.0);
         Ok(())
     }
 
@@ -469,7 +470,7 @@ impl Ring {
             );
         }
         self.flow.offsets[q] -= 1;
-        if let Some(m) = self.messages.get_mut(&pkt.msg) {
+        if let Some(m) = self.messages.get_mut(pkt.msg.0) {
             // Channels above 63 share bit 63: the mask is a trace aid, not a model input.
             m.channels |= 1 << cap.channel.min(63);
             m.first_start.get_or_insert(cap.start);
@@ -550,7 +551,7 @@ impl Ring {
                     payload,
                 } => {
                     self.node[dst as usize].payload_words_received += u64::from(payload);
-                    let Some(m) = self.messages.get_mut(&msg) else {
+                    let Some(m) = self.messages.get_mut(msg.0) else {
                         panic!(
                             "pxpl5-ring model bug on channel {channel}, clock {clock}: a packet \
                              of message {msg} arrived after the message was consumed"
