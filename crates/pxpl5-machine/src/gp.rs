@@ -177,7 +177,7 @@ pub(crate) struct Shared {
 /// The start of a program phase on one GP ([`Gp::phase`]).
 #[derive(Debug)]
 pub(crate) struct PhaseMark {
-    pub name: String,
+    pub name: &'static str,
     pub at: Tick,
 }
 
@@ -355,13 +355,12 @@ impl Gp {
     }
 
     /// Mark the start of a program phase (it lasts until the next mark or the program's end).
-    pub fn phase(&self, name: &str) {
+    /// A program has a few phases and marks them over and over, so a phase is named by a
+    /// `'static` string, kept without a copy.
+    pub fn phase(&self, name: &'static str) {
         let mut s = self.shared.borrow_mut();
         let now = s.now;
-        s.phase_marks.push(PhaseMark {
-            name: name.to_string(),
-            at: now,
-        });
+        s.phase_marks.push(PhaseMark { name, at: now });
     }
 
     /// Be busy for `count` operations of kind `op`, priced by the cost table. Programs charge

@@ -133,9 +133,10 @@ impl GpNode {
         })
     }
 
-    /// The phase marks the program made since the last call.
-    pub fn take_phase_marks(&mut self) -> Vec<PhaseMark> {
-        std::mem::take(&mut self.shared.borrow_mut().phase_marks)
+    /// The phase marks the program made since the last call, into `marks` (empty), which
+    /// takes the GP's buffer in exchange: neither side allocates once both have grown.
+    pub fn take_phase_marks(&mut self, marks: &mut Vec<PhaseMark>) {
+        std::mem::swap(&mut self.shared.borrow_mut().phase_marks, marks);
     }
 
     /// Hand the oldest message of the mailbox to the waiting receive; false if the mailbox is

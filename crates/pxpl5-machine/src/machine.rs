@@ -31,7 +31,7 @@ use pxpl5_sim::{ClockDomain, ComponentId, EventQueue, Priority, Tick};
 use crate::critical::{Cat, Categories, Fixed, PathPart, Profile, Resource};
 use crate::delivery::{Arrival, Delivery, Route, Sent};
 use crate::frame_buffer::FrameBufferImage;
-use crate::gp::{Gp, Payload, Program, Shared, Unit};
+use crate::gp::{Gp, Payload, PhaseMark, Program, Shared, Unit};
 use crate::gp_node::{Busy, GpNode, GpState, GpStep};
 use crate::monitor::{CHECK_EVERY, Stop};
 use crate::ready::Ready;
@@ -97,7 +97,9 @@ pub struct Machine {
     fixed: Fixed,
     gp_phase: Vec<Cat>,
     /// Each phase name's category, in order of first mark.
-    phase_cats: Vec<(String, Cat)>,
+    phase_cats: Vec<(&'static str, Cat)>,
+    /// Phase marks taken from a GP, a buffer kept across calls.
+    marks: Vec<PhaseMark>,
     /// Each Renderer command kind's category, by `Command::kind_index`, made on first use.
     kinds: Vec<Option<Cat>>,
     host: HostWork,
@@ -164,6 +166,7 @@ impl Machine {
         Ok(Machine {
             gp_phase: vec![computing; cfg.gp.count as usize],
             phase_cats: Vec::new(),
+            marks: Vec::new(),
             categories,
             fixed,
             kinds: vec![None; pxpl5_renderer::Command::KINDS.len()],
@@ -602,7 +605,9 @@ impl Machine {
 
     /// Move GP phase marks to the recorder; the last is the GP's phase from now on.
     fn flush_phases(&mut self, g: u32) {
-        for mark in self.gps[g as usize].take_phase_marks() {
+        let mut marks = std::mem::take(&mut self.marks);
+        self.gps[g as usize].take_phase_marks(&mut marks);
+        for mark in marks.drain(..) {
             // A program has a few phase names and marks them every shot: their categories are
             // looked up by name here, not formatted and hashed per mark.
             let cat = match self.phase_cats.iter().find(|(name, _)| *name == mark.name) {
@@ -611,13 +616,14 @@ impl Machine {
                     let cat = self
                         .categories
                         .get(&format!("GP {}", mark.name), Resource::Gp);
-                    self.phase_cats.push((mark.name.clone(), cat));
+                    self.phase_cats.push((mark.name, cat));
                     cat
                 }
             };
             self.gp_phase[g as usize] = cat;
             self.recorder.phase(g, mark.name, mark.at);
         }
+        self.marks = marks;
     }
 
     /// The path of the unit that finished last (a GP on a tie), and when it finished.

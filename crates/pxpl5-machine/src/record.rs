@@ -61,14 +61,14 @@ struct Lane {
 /// A phase mark of one GP.
 struct Mark {
     gp: u32,
-    name: String,
+    name: &'static str,
     at: Tick,
 }
 
 /// One phase of one GP: from its mark to the GP's next mark or its program's end.
 struct GpPhase {
     gp: u32,
-    name: String,
+    name: &'static str,
     start: Tick,
     end: Tick,
 }
@@ -307,7 +307,7 @@ impl Recorder {
         }
     }
 
-    pub(crate) fn phase(&mut self, gp: u32, name: String, at: Tick) {
+    pub(crate) fn phase(&mut self, gp: u32, name: &'static str, at: Tick) {
         self.marks.push(Mark { gp, name, at });
     }
 
@@ -527,7 +527,7 @@ impl Recorder {
             for (i, m) in marks.iter().enumerate() {
                 out.push(GpPhase {
                     gp,
-                    name: m.name.clone(),
+                    name: m.name,
                     start: m.at,
                     end: marks.get(i + 1).map_or(gp_end, |next| next.at),
                 });
@@ -554,7 +554,7 @@ impl Recorder {
                     s.gp_time += stop - start;
                 }
                 None => spans.push(PhaseSpan {
-                    name,
+                    name: name.to_string(),
                     first_start: start,
                     last_end: stop,
                     gp_time: stop - start,
@@ -606,7 +606,7 @@ impl Recorder {
             for p in spans {
                 c.slice(
                     t.gp_phase[p.gp as usize],
-                    &p.name,
+                    p.name,
                     p.start,
                     p.end,
                     Args::new(),
