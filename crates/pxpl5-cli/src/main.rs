@@ -44,12 +44,6 @@ pub use crate::failure::UserError;
 use crate::failure::{EXIT_CODES, Failure};
 use crate::output::errln;
 
-/// mimalloc rather than the system's malloc: host work only (no output depends on where memory
-/// is). The simulator makes and frees many small buffers (messages, command lists, phase marks);
-/// glibc took about 300 instructions a `malloc` and 180 a `free` on the main job.
-#[global_allocator]
-static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
-
 /// A cycle-level simulator of Pixel-Planes 5 (UNC, 1989): Graphics Processors on a token ring,
 /// and 128 x 128 bit-serial SIMD Renderers with a quadratic expression evaluator.
 ///
