@@ -223,6 +223,10 @@ pub trait Record: Sized {
     fn decode(values: &[f64]) -> Self;
 }
 
+/// Most commands a [`CommandBatch`] makes room for at once (a bound on what a guess from the
+/// first group of a message may take).
+const MAX_RESERVED_COMMANDS: usize = 4096;
+
 /// Commands for one Renderer gathered into messages of at most the ring's `max_message_words`:
 /// [`CommandBatch::push`] sends what it holds when the next group of commands would not fit.
 pub struct CommandBatch {
@@ -256,6 +260,17 @@ impl CommandBatch {
         let full = self.words + w > gp.max_message_words && !self.commands.is_empty();
         if full {
             self.send(gp).await;
+        }
+        if self.commands.is_empty() {
+            // Room for a message of groups like this one, made once: grown group by group, a
+            // message's list was reallocated several times (each time copied whole).
+            let groups = (gp.max_message_words / w.max(1)).max(1) as usize;
+            self.commands.reserve(
+                group
+                    .len()
+                    .saturating_mul(groups)
+                    .min(MAX_RESERVED_COMMANDS),
+            );
         }
         self.commands.extend(group);
         self.words += w;
