@@ -87,6 +87,8 @@ pub struct Machine {
     delivery: Delivery,
     /// Arrivals due to their receivers, a buffer kept across deliveries.
     due: Vec<Arrival>,
+    /// The ring's deliveries of an instant, a buffer kept across instants.
+    deliveries: Vec<pxpl5_ring::Delivery>,
     now: Tick,
     options: RunOptions,
     recorder: Recorder,
@@ -183,6 +185,7 @@ impl Machine {
             events: EventQueue::new(),
             delivery,
             due: Vec::new(),
+            deliveries: Vec::new(),
             now: Tick::ZERO,
             options,
             recorder,
@@ -258,10 +261,13 @@ impl Machine {
             let mut progress = next > self.now;
             self.now = next;
             self.ring.advance(next);
-            for d in self.ring.take_deliveries() {
+            let mut deliveries = std::mem::take(&mut self.deliveries);
+            self.ring.take_deliveries_into(&mut deliveries);
+            for d in deliveries.drain(..) {
                 progress = true;
                 self.deliver(d)?;
             }
+            self.deliveries = deliveries;
             while self.events.peek_tick() == Some(next) {
                 progress = true;
                 let e = self.events.pop().expect("peeked");

@@ -583,9 +583,21 @@ impl Ring {
 
     /// The messages delivered since the last call, by delivery tick, then message id.
     pub fn take_deliveries(&mut self) -> Vec<Delivery> {
-        let mut out = std::mem::take(&mut self.deliveries);
-        out.sort_by_key(|d| (d.delivered, d.id));
+        let mut out = Vec::new();
+        self.take_deliveries_into(&mut out);
         out
+    }
+
+    /// [`Ring::take_deliveries`] into `out` (empty), which the ring keeps in exchange as its
+    /// buffer for the next ones: a caller that passes the same buffer every time allocates
+    /// nothing once both have grown.
+    pub fn take_deliveries_into(&mut self, out: &mut Vec<Delivery>) {
+        debug_assert!(
+            out.is_empty(),
+            "deliveries taken into a buffer that holds some"
+        );
+        std::mem::swap(&mut self.deliveries, out);
+        out.sort_by_key(|d| (d.delivered, d.id));
     }
 
     /// The earliest tick after [`Ring::now`] at which the ring's visible state changes if nothing
