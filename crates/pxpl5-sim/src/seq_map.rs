@@ -4,7 +4,7 @@
 //!
 //! A `BTreeMap` keyed by the number did the same at several hundred host instructions an insert
 //! or remove, and moved its values within its nodes on every remove; here each operation is an
-//! index into a ring buffer of slots, from the oldest live number to the newest one inserted.
+//! index into a circular buffer of slots, from the oldest live number to the newest one inserted.
 //! The price is memory: a slot for every number between the oldest live one and the newest, so a
 //! value that lives long while many later ones come and go holds their emptied slots until it
 //! is removed.
