@@ -139,7 +139,7 @@ impl Delivery {
         let state = self.route(route);
         let seq = state.next_send;
         state.next_send += 1;
-        self.in_flight.insert(
+        let fresh = self.in_flight.insert(
             id.0,
             InFlight {
                 route,
@@ -148,6 +148,9 @@ impl Delivery {
                 sent,
             },
         );
+        if fresh.is_err() {
+            panic!("ring accepted message {id} after a later one");
+        }
     }
 
     /// The ring delivered message `id` at `at`: returns its route, and appends to `due` the

@@ -333,7 +333,7 @@ impl Ring {
         let st = &mut self.node[s as usize];
         st.max_output_words = st.max_output_words.max(self.out_used[s as usize]);
         st.messages_sent += 1;
-        self.messages.insert(
+        let numbered = self.messages.insert(
             id.0,
             Message {
                 src: s,
@@ -349,6 +349,9 @@ impl Ring {
                 first_start: None,
             },
         );
+        if numbered.is_err() {
+            panic!("pxpl5-ring model bug: message {id} numbered below one accepted before it");
+        }
         Ok(id)
     }
 

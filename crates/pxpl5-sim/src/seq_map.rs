@@ -37,18 +37,13 @@ impl<T> SeqMap<T> {
         }
     }
 
-    /// Insert value `v` as number `n`.
-    ///
-    /// # Panics
-    /// If `n` is not above every number inserted before: numbers are handed out in order, so
-    /// that would be a bug of the caller's.
-    pub fn insert(&mut self, n: u64, v: T) {
+    /// Insert value `v` as number `n`; `Err(v)` back, and nothing inserted, if `n` is not above
+    /// every number inserted before (numbers are handed out in order: the caller has a bug).
+    pub fn insert(&mut self, n: u64, v: T) -> Result<(), T> {
         let next = self.base + self.slots.len() as u64;
-        assert!(
-            n >= next,
-            "SeqMap: number {n} inserted after number {}",
-            next.saturating_sub(1)
-        );
+        if n < next {
+            return Err(v);
+        }
         if self.slots.is_empty() {
             self.base = n;
         } else {
@@ -57,6 +52,7 @@ impl<T> SeqMap<T> {
         }
         self.slots.push_back(Some(v));
         self.len += 1;
+        Ok(())
     }
 
     fn index(&self, n: u64) -> Option<usize> {
@@ -127,7 +123,7 @@ mod tests {
             match next() % 4 {
                 0 | 1 => {
                     n += 1 + next() % 3;
-                    map.insert(n, step);
+                    assert_eq!(map.insert(n, step), Ok(()));
                     model.insert(n, step);
                 }
                 2 => {
@@ -157,7 +153,7 @@ mod tests {
     fn emptied_slots_are_dropped_from_the_front() {
         let mut map = SeqMap::new();
         for n in 0..100 {
-            map.insert(n, n);
+            assert_eq!(map.insert(n, n), Ok(()));
         }
         for n in 1..100 {
             map.remove(n);
@@ -167,7 +163,7 @@ mod tests {
         assert_eq!(map.remove(0), Some(0));
         assert!(map.slots.is_empty() && map.is_empty());
         // A map emptied starts again at the next number inserted.
-        map.insert(500, 1);
+        assert_eq!(map.insert(500, 1), Ok(()));
         assert_eq!(
             (map.base, map.slots.len(), map.get(500)),
             (500, 1, Some(&1))
@@ -176,10 +172,15 @@ mod tests {
     }
 
     #[test]
-    #[should_panic(expected = "inserted after")]
-    fn numbers_out_of_order_are_a_bug() {
+    fn numbers_out_of_order_are_refused() {
         let mut map = SeqMap::new();
-        map.insert(5, ());
-        map.insert(5, ());
+        assert_eq!(map.insert(5, 'a'), Ok(()));
+        assert_eq!(map.insert(5, 'b'), Err('b'));
+        assert_eq!(map.insert(4, 'c'), Err('c'));
+        assert_eq!((map.len(), map.get(5)), (1, Some(&'a')));
+        // Below the oldest live number, once those before it are gone, too.
+        assert_eq!(map.insert(6, 'd'), Ok(()));
+        assert_eq!(map.remove(5), Some('a'));
+        assert_eq!(map.insert(5, 'e'), Err('e'));
     }
 }
