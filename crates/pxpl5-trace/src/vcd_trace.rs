@@ -132,10 +132,41 @@ impl fmt::Debug for Stream {
 struct Body {
     current: Vec<u64>,
     last_time: Tick,
-    /// Each wire's identifier code as the vcd crate writes it, made once.
-    ids: Vec<Box<[u8]>>,
+    /// What ends each wire's value line: its identifier code as the vcd crate writes it, and
+    /// the newline; made once.
+    tails: Vec<Box<[u8]>>,
+    /// Per wire, by value, its whole value lines, each made the first time it is written: a
+    /// 1-bit wire's two, and the texts a string variable takes (a ring token's position takes
+    /// a few, at most instants). Wider wires keep none.
+    lines: Vec<Vec<Line>>,
     /// The text of the changes being written, sent to the writer in one piece per batch.
     text: Vec<u8>,
+}
+
+/// A value line kept by [`Body::lines`], padded to a fixed length so that appending it is a copy
+/// of known length and a truncation (a copy of a few bytes of unknown length is a call to
+/// `memcpy`, most of the cost of a line).
+#[derive(Clone, Copy, Debug)]
+struct Line {
+    bytes: [u8; Line::MAX],
+    /// 0 for a line not made yet.
+    len: u8,
+}
+
+impl Line {
+    /// The longest line kept; a longer one is made each time it is written.
+    const MAX: usize = 32;
+    const NONE: Line = Line {
+        bytes: [0; Line::MAX],
+        len: 0,
+    };
+
+    fn new(text: &[u8]) -> Option<Line> {
+        let mut line = Line::NONE;
+        line.bytes.get_mut(..text.len())?.copy_from_slice(text);
+        line.len = text.len() as u8;
+        Some(line)
+    }
 }
 
 /// A builder of a VCD file over simulated time. See the module docs for the output format.
@@ -152,8 +183,14 @@ pub struct VcdTrace {
     texts: Vec<String>,
     text_ids: HashMap<String, u64>,
     /// Changes inside the window, after its start, in recording order; when streamed, only
-    /// those not yet written.
+    /// those not yet written, and not those at the settled instant (`at_settled`).
     changes: Vec<Change>,
+    /// A streamed trace's changes at the instant settled when they were recorded, not yet
+    /// written: sorted by time and wire, one per (time, wire), the last recorded. They need no
+    /// sort: a recorder samples its wires at the settled instant (a ring token's position at
+    /// every instant), in turn. A change held in `changes` at the same time and wire was
+    /// recorded before (time had not settled there yet), so one here wins.
+    at_settled: Vec<Change>,
     /// The other buffer of [`sort_changes`] (host work only).
     scratch: Vec<Change>,
     /// Set for a trace written as it is recorded ([`VcdTrace::streamed`]).
@@ -184,6 +221,7 @@ impl VcdTrace {
             texts: Vec::new(),
             text_ids: HashMap::new(),
             changes: Vec::new(),
+            at_settled: Vec::new(),
             scratch: Vec::new(),
             stream: None,
         }
@@ -216,7 +254,7 @@ impl VcdTrace {
 
     /// The changes held in memory, not yet written.
     pub fn held_changes(&self) -> usize {
-        self.changes.len()
+        self.changes.len() + self.at_settled.len()
     }
 
     /// The scope (VCD module) named `name`, created on first use.
@@ -335,21 +373,23 @@ impl VcdTrace {
         if at >= window.end {
             return;
         }
-        if let Some(stream) = &mut self.stream
-            && at < stream.settled
-        {
-            // Written already up to `settled`: the change would come out of order. The recorder
-            // broke its promise (a simulator bug); the trace fails rather than lie.
-            if stream.error.is_none() {
-                stream.error = Some(io::Error::new(
-                    io::ErrorKind::InvalidData,
-                    format!(
-                        "VCD change at {at} recorded after time settled at {} (a simulator bug)",
-                        stream.settled
-                    ),
-                ));
+        let mut at_settled = false;
+        if let Some(stream) = &mut self.stream {
+            if at < stream.settled {
+                // Written already up to `settled`: the change would come out of order. The
+                // recorder broke its promise (a simulator bug); the trace fails rather than lie.
+                if stream.error.is_none() {
+                    stream.error = Some(io::Error::new(
+                        io::ErrorKind::InvalidData,
+                        format!(
+                            "VCD change at {at} recorded after time settled at {} (a simulator bug)",
+                            stream.settled
+                        ),
+                    ));
+                }
+                return;
             }
-            return;
+            at_settled = at == stream.settled;
         }
         let s = &mut self.signals[signal.0];
         let value = mask(value, s.width);
@@ -358,6 +398,8 @@ impl VcdTrace {
             if s.initial.is_none_or(|(t, _)| at >= t) {
                 s.initial = Some((at, value));
             }
+        } else if at_settled {
+            hold_settled(&mut self.at_settled, (at, signal.0, value));
         } else {
             self.changes.push((at, signal.0, value));
         }
@@ -372,7 +414,7 @@ impl VcdTrace {
         };
         stream.settled = stream.settled.max(now);
         let settled = stream.settled;
-        if self.changes.len() >= Self::FLUSH_AT {
+        if self.held_changes() >= Self::FLUSH_AT {
             self.flush(settled);
         }
     }
@@ -413,13 +455,20 @@ impl VcdTrace {
             }
             sort_changes(&mut self.changes, &mut self.scratch);
             let n = self.changes.partition_point(|&(at, ..)| at < before);
+            let m = self.at_settled.partition_point(|&(at, ..)| at < before);
             if stream.error.is_none()
                 && let Some(body) = &mut stream.body
-                && let Err(e) = self.write_changes(&mut stream.out, body, &self.changes[..n])
+                && let Err(e) = self.write_changes(
+                    &mut stream.out,
+                    body,
+                    &self.changes[..n],
+                    &self.at_settled[..m],
+                )
             {
                 stream.error = Some(e);
             }
             self.changes.drain(..n);
+            self.at_settled.drain(..m);
         }
         self.stream = Some(stream);
     }
@@ -444,7 +493,8 @@ impl VcdTrace {
         let mut body = self.begin_body(&mut out)?;
         let mut changes = self.changes.clone();
         sort_changes(&mut changes, &mut Vec::new());
-        self.write_changes(&mut out, &mut body, &changes)?;
+        // Not streamed: nothing is held as settled.
+        self.write_changes(&mut out, &mut body, &changes, &[])?;
         self.end_body(&mut out, &body)
     }
 
@@ -481,9 +531,10 @@ impl VcdTrace {
             .map(|s| s.initial.map_or(0, |(_, v)| v))
             .collect();
         let mut body = Body {
-            ids: (0..self.signals.len())
-                .map(|i| id_code(i).to_string().into_bytes().into_boxed_slice())
+            tails: (0..self.signals.len())
+                .map(|i| format!("{}\n", id_code(i)).into_bytes().into_boxed_slice())
                 .collect(),
+            lines: vec![Vec::new(); self.signals.len()],
             current,
             last_time: self.window.start,
             text: Vec::new(),
@@ -500,20 +551,48 @@ impl VcdTrace {
         Ok(body)
     }
 
-    /// Writes `changes`, sorted by [`sort_changes`] and holding every change at each instant
-    /// they cover: per wire and instant the last one, where it changes the wire's value.
+    /// Writes `changes`, sorted by [`sort_changes`], merged with `settled`, the changes held at
+    /// the settled instant (see [`VcdTrace::at_settled`]): together they hold every change at
+    /// each instant they cover. Per wire and instant the last one recorded is written, where it
+    /// changes the wire's value.
     fn write_changes<W: Write>(
         &self,
         out: &mut vcd::Writer<W>,
         body: &mut Body,
         changes: &[Change],
+        settled: &[Change],
     ) -> io::Result<()> {
+        let key = |c: &Change| (c.0, c.1);
         let mut n = itoa::Buffer::new();
-        for (i, &(at, index, value)) in changes.iter().enumerate() {
-            let superseded = changes
-                .get(i + 1)
-                .is_some_and(|&(next_at, next_index, ..)| (next_at, next_index) == (at, index));
-            if superseded || body.current[index] == value {
+        let (mut i, mut j) = (0, 0);
+        loop {
+            let from_settled = match (changes.get(i), settled.get(j)) {
+                (None, None) => break,
+                (Some(a), Some(b)) => key(b) <= key(a),
+                (a, _) => a.is_none(),
+            };
+            let (at, index, value) = if from_settled {
+                let c = settled[j];
+                j += 1;
+                // Held in `changes` at the same instant and wire: recorded before it.
+                while changes.get(i).is_some_and(|a| key(a) == key(&c)) {
+                    i += 1;
+                }
+                c
+            } else {
+                // The last recorded of its instant and wire (`settled` holds none of them:
+                // its next is later).
+                let mut c = changes[i];
+                i += 1;
+                while let Some(&a) = changes.get(i)
+                    && key(&a) == key(&c)
+                {
+                    c = a;
+                    i += 1;
+                }
+                c
+            };
+            if body.current[index] == value {
                 continue;
             }
             if at != body.last_time {
@@ -544,6 +623,25 @@ impl VcdTrace {
             }
         }
         out.flush()
+    }
+}
+
+/// Holds `change`, at the settled instant, in `settled` (the [`VcdTrace::at_settled`] list): after the
+/// changes of the same instant to later wires, which a recorder sampling its wires in turn
+/// records after it, so the walk back is short; in place of one at the same instant and wire.
+fn hold_settled(settled: &mut Vec<Change>, change: Change) {
+    let key = |c: &Change| (c.0, c.1);
+    if settled.last().is_none_or(|last| key(last) < key(&change)) {
+        settled.push(change);
+        return;
+    }
+    let mut i = settled.len();
+    while i > 0 && key(&settled[i - 1]) > key(&change) {
+        i -= 1;
+    }
+    match i.checked_sub(1).map(|k| &mut settled[k]) {
+        Some(same) if key(same) == key(&change) => same.2 = change.2,
+        _ => settled.insert(i, change),
     }
 }
 
@@ -619,27 +717,67 @@ impl VcdTrace {
     /// formatting machinery was most of the trace's cost (a 60-shot radiosity run took 28 %
     /// more instructions with `--vcd`).
     fn encode_value(&self, body: &mut Body, index: usize, value: u64) {
-        let (text, id) = (&mut body.text, &body.ids[index]);
-        match self.signals[index].width {
-            0 => {
-                text.push(b's');
-                let value = self.texts.get(value as usize).map_or("_", String::as_str);
-                text.extend_from_slice(value.as_bytes());
-                text.push(b' ');
+        let width = self.signals[index].width;
+        // A text index held by no text (a raw `change` to a string variable) writes `_`, and
+        // is not kept: the index may name a text interned later.
+        let kept = match width {
+            0 => value < self.texts.len() as u64,
+            1 => true,
+            _ => false,
+        };
+        let lines = &mut body.lines[index];
+        let v = value as usize;
+        if kept && lines.len() <= v {
+            lines.resize(v + 1, Line::NONE);
+        }
+        let line = match lines.get_mut(v) {
+            Some(line) if kept && line.len == 0 => {
+                let text = self.value_line(&body.tails[index], width, value);
+                match Line::new(&text) {
+                    Some(made) => *line = made,
+                    None => {
+                        body.text.extend_from_slice(&text);
+                        return;
+                    }
+                }
+                line
             }
-            1 => text.push(b'0' + (value & 1) as u8),
+            Some(line) if kept => line,
+            _ => {
+                let text = self.value_line(&body.tails[index], width, value);
+                body.text.extend_from_slice(&text);
+                return;
+            }
+        };
+        let end = body.text.len() + line.len as usize;
+        body.text.extend_from_slice(&line.bytes);
+        body.text.truncate(end);
+    }
+
+    /// The line of a wire of `width` bits taking `value`, ending in `tail` (see
+    /// [`VcdTrace::encode_value`]).
+    fn value_line(&self, tail: &[u8], width: u32, value: u64) -> Vec<u8> {
+        let mut line = Vec::with_capacity(width as usize + tail.len() + 2);
+        match width {
+            0 => {
+                line.push(b's');
+                let value = self.texts.get(value as usize).map_or("_", String::as_str);
+                line.extend_from_slice(value.as_bytes());
+                line.push(b' ');
+            }
+            1 => line.push(b'0' + (value & 1) as u8),
             width => {
-                text.push(b'b');
-                text.extend(
+                line.push(b'b');
+                line.extend(
                     (0..width)
                         .rev()
                         .map(|bit| b'0' + ((value >> bit) & 1) as u8),
                 );
-                text.push(b' ');
+                line.push(b' ');
             }
         }
-        text.extend_from_slice(id);
-        text.push(b'\n');
+        line.extend_from_slice(tail);
+        line
     }
 }
 
