@@ -368,6 +368,7 @@ impl VcdTrace {
 
     /// Records that `signal` takes `value` at `at`. Bits above the wire's width are dropped, as
     /// when a Verilog value is assigned to a narrower wire.
+    #[inline]
     pub fn change(&mut self, signal: SignalId, at: Tick, value: u64) {
         let window = self.window;
         if at >= window.end {
@@ -716,42 +717,44 @@ impl VcdTrace {
     /// like the number) and `change_string` write it, by hand: through the crate, the
     /// formatting machinery was most of the trace's cost (a 60-shot radiosity run took 28 %
     /// more instructions with `--vcd`).
+    #[inline]
     fn encode_value(&self, body: &mut Body, index: usize, value: u64) {
+        // Most lines are kept (a ring token's position, a busy wire): a copy and a truncation.
+        if let Some(line) = body.lines[index].get(value as usize)
+            && line.len != 0
+        {
+            let end = body.text.len() + line.len as usize;
+            body.text.extend_from_slice(&line.bytes);
+            body.text.truncate(end);
+            return;
+        }
+        self.encode_value_first(body, index, value);
+    }
+
+    /// [`VcdTrace::encode_value`] for a line not kept: made now, and kept if it may be.
+    #[cold]
+    fn encode_value_first(&self, body: &mut Body, index: usize, value: u64) {
         let width = self.signals[index].width;
         // A text index held by no text (a raw `change` to a string variable) writes `_`, and
-        // is not kept: the index may name a text interned later.
+        // is not kept: the index may name a text interned later. Wider wires keep no lines.
         let kept = match width {
             0 => value < self.texts.len() as u64,
             1 => true,
             _ => false,
         };
-        let lines = &mut body.lines[index];
-        let v = value as usize;
-        if kept && lines.len() <= v {
-            lines.resize(v + 1, Line::NONE);
+        let text = self.value_line(&body.tails[index], width, value);
+        let made = Line::new(&text);
+        if let Some(line) = made
+            && kept
+        {
+            let lines = &mut body.lines[index];
+            let v = value as usize;
+            if lines.len() <= v {
+                lines.resize(v + 1, Line::NONE);
+            }
+            lines[v] = line;
         }
-        let line = match lines.get_mut(v) {
-            Some(line) if kept && line.len == 0 => {
-                let text = self.value_line(&body.tails[index], width, value);
-                match Line::new(&text) {
-                    Some(made) => *line = made,
-                    None => {
-                        body.text.extend_from_slice(&text);
-                        return;
-                    }
-                }
-                line
-            }
-            Some(line) if kept => line,
-            _ => {
-                let text = self.value_line(&body.tails[index], width, value);
-                body.text.extend_from_slice(&text);
-                return;
-            }
-        };
-        let end = body.text.len() + line.len as usize;
-        body.text.extend_from_slice(&line.bytes);
-        body.text.truncate(end);
+        body.text.extend_from_slice(&text);
     }
 
     /// The line of a wire of `width` bits taking `value`, ending in `tail` (see
