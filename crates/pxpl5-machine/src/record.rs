@@ -74,79 +74,14 @@ struct GpPhase {
 }
 
 struct Signals {
-    /// The busy wires: GP `g`'s is wire `g`, Renderer `r`'s wire `gps + r`.
-    busy: BusyWires,
-    gps: usize,
+    gp: Vec<SignalId>,
+    renderer: Vec<SignalId>,
     token_at: Vec<SignalId>,
     token_held: Vec<SignalId>,
     /// The values of `token_at`: each node's unit, named once (the token moves at every hop).
     node_text: Vec<TextValue>,
     /// The value of `token_at` for a channel whose token is nowhere.
     no_node: TextValue,
-}
-
-/// The VCD's busy wires (one per GP and per Renderer), set by spans of work. A span that starts
-/// where the wire's previous one ended leaves the wire at 1, so the previous span's end is held
-/// back until the wire's next span or the machine's time shows whether it is one: a Renderer's
-/// commands and a GP's compute, send and receive mostly follow one another at once. The file is
-/// the one recording every span's start and end gives: a wire's changes are recorded in the
-/// same order, less the pairs at one instant that set it back to 1, which a wire at 1 since its
-/// span's start ignores. That needs a wire's spans in order, none starting before the previous
-/// one ends: a unit does one thing at a time. The host work, which a VCD spends per change, is
-/// not the same: the pairs were most of the changes recorded.
-struct BusyWires {
-    /// Per wire: its signal, and the end of its latest span if not recorded yet.
-    wires: Vec<(SignalId, Option<Tick>)>,
-    /// No end held back is earlier than this.
-    earliest: Tick,
-}
-
-impl BusyWires {
-    fn new(signals: impl IntoIterator<Item = SignalId>) -> BusyWires {
-        BusyWires {
-            wires: signals.into_iter().map(|s| (s, None)).collect(),
-            earliest: Tick(u64::MAX),
-        }
-    }
-
-    /// Wire `wire` is busy over `[start, end)`. A span is recorded at its start's instant or
-    /// before it, never after, and starts no earlier than the wire's previous span ends.
-    fn span(&mut self, v: &mut VcdTrace, wire: usize, start: Tick, end: Tick) {
-        let (signal, held) = &mut self.wires[wire];
-        debug_assert!(
-            held.is_none_or(|last| start >= last) && end >= start,
-            "busy spans of one unit overlap or run backwards: a simulator bug"
-        );
-        match held.replace(end) {
-            Some(last) if last == start => {}
-            Some(last) => {
-                v.change(*signal, last, 0);
-                v.change(*signal, start, 1);
-            }
-            None => v.change(*signal, start, 1),
-        }
-        self.earliest = self.earliest.min(end);
-    }
-
-    /// Records the ends held back that are before `now` (all of them for `Tick(u64::MAX)`): no
-    /// span can start at them any more, and the trace is about to be told that nothing before
-    /// `now` is to come.
-    fn settle(&mut self, v: &mut VcdTrace, now: Tick) {
-        if now <= self.earliest {
-            return;
-        }
-        self.earliest = Tick(u64::MAX);
-        for (signal, held) in &mut self.wires {
-            match *held {
-                Some(end) if end < now || now == Tick(u64::MAX) => {
-                    v.change(*signal, end, 0);
-                    *held = None;
-                }
-                Some(end) => self.earliest = self.earliest.min(end),
-                None => {}
-            }
-        }
-    }
 }
 
 /// Names of the event trace's counters, made once (a counter changes at many instants).
@@ -345,11 +280,11 @@ impl Recorder {
                 order.join(", ")
             ));
             let gp_scope = v.scope("gps");
-            let gp: Vec<_> = (0..gps)
+            let gp = (0..gps)
                 .map(|g| v.wire(gp_scope, &format!("gp{g}_busy"), 1))
                 .collect();
             let r_scope = v.scope("renderers");
-            let renderer: Vec<_> = (0..renderers)
+            let renderer = (0..renderers)
                 .map(|r| v.wire(r_scope, &format!("renderer{r}_busy"), 1))
                 .collect();
             let ring_scope = v.scope("ring");
@@ -362,8 +297,8 @@ impl Recorder {
             let node_text = units.iter().map(|u| v.text_value(&u.to_string())).collect();
             let no_node = v.text_value("-");
             self.signals = Some(Signals {
-                busy: BusyWires::new(gp.into_iter().chain(renderer)),
-                gps,
+                gp,
+                renderer,
                 token_at,
                 token_held,
                 node_text,
@@ -394,8 +329,9 @@ impl Recorder {
                 c.flow(t.gp[g], FLOW, id.0, FlowStep::End, mid(start, end));
             }
         }
-        if let (Some(v), Some(s)) = (&mut self.vcd, &mut self.signals) {
-            s.busy.span(v, g, start, end);
+        if let (Some(v), Some(s)) = (&mut self.vcd, &self.signals) {
+            // A GP does one thing at a time: its spans never overlap.
+            v.span(s.gp[g], start, end);
         }
     }
 
@@ -425,8 +361,9 @@ impl Recorder {
                 *last = Some((start, end, started.message));
             }
         }
-        if let (Some(v), Some(s)) = (&mut self.vcd, &mut self.signals) {
-            s.busy.span(v, s.gps + r as usize, start, end);
+        if let (Some(v), Some(s)) = (&mut self.vcd, &self.signals) {
+            // A board runs its commands one after another: its spans never overlap.
+            v.span(s.renderer[r as usize], start, end);
         }
     }
 
@@ -542,9 +479,6 @@ impl Recorder {
                 }
                 self.queue_words[i] = (out, inp);
             }
-        }
-        if let (Some(v), Some(s)) = (&mut self.vcd, &mut self.signals) {
-            s.busy.settle(v, now);
         }
         if let Some(v) = &mut self.vcd {
             // Every change is recorded at the machine's current instant or later (a unit's busy
@@ -680,9 +614,6 @@ impl Recorder {
             }
             c.metadata("simulated_end_ps", end.0);
         }
-        if let (Some(v), Some(s)) = (&mut self.vcd, &mut self.signals) {
-            s.busy.settle(v, Tick(u64::MAX));
-        }
         if let Some(v) = &mut self.vcd {
             v.set_end(end);
         }
@@ -720,77 +651,6 @@ impl Recorder {
         match &mut self.vcd {
             Some(v) if v.is_streamed() => v.finish().map(|()| true),
             _ => Ok(false),
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use pxpl5_trace::TraceWindow;
-
-    /// Busy wires joined by `BusyWires` give the VCD that recording every span's start and end
-    /// does: for spans back to back, with gaps, of no length, ending past the window, on
-    /// streamed traces and traces held in memory, in windows that fold changes in and drop them.
-    #[test]
-    fn joined_busy_spans_write_the_vcd_of_every_start_and_end() {
-        let windows = ["0..", "300ps..900ps", "1ps.."].map(|w| w.parse::<TraceWindow>().unwrap());
-        for (window, streamed) in windows.iter().flat_map(|&w| [(w, false), (w, true)]) {
-            let new = |out: &pxpl5_tests::SharedBytes| {
-                let mut v = if streamed {
-                    VcdTrace::streamed(window, Box::new(out.clone()))
-                } else {
-                    VcdTrace::new(window)
-                };
-                let scope = v.scope("units");
-                let wires: Vec<_> = (0..3).map(|i| v.wire(scope, &format!("u{i}"), 1)).collect();
-                (v, wires)
-            };
-            let (out_joined, out_plain) = Default::default();
-            let (mut joined, wires) = new(&out_joined);
-            let (mut plain, _) = new(&out_plain);
-            let mut busy = BusyWires::new(wires.iter().copied());
-            let mut next = pxpl5_tests::xorshift(0x00B5_5EED_0000_0001);
-            let mut free = [Tick::ZERO; 3];
-            let mut now = 0u64;
-            for _ in 0..5_000 {
-                let r = next();
-                now += r % 3;
-                busy.settle(&mut joined, Tick(now));
-                joined.settle(Tick(now));
-                plain.settle(Tick(now));
-                let w = (r >> 8) as usize % 3;
-                // A unit's next span: at once after its last (most), or after a gap.
-                let start =
-                    free[w].max(Tick(now)).0 + if r >> 16 & 3 == 0 { r >> 20 & 7 } else { 0 };
-                if start > now + 4 {
-                    continue;
-                }
-                let end = start + (r >> 24) % 5;
-                busy.span(&mut joined, w, Tick(start), Tick(end));
-                plain.change(wires[w], Tick(start), 1);
-                plain.change(wires[w], Tick(end), 0);
-                free[w] = Tick(end);
-            }
-            busy.settle(&mut joined, Tick(u64::MAX));
-            for v in [&mut joined, &mut plain] {
-                v.set_end(Tick(now + 10));
-            }
-            let text = |mut v: VcdTrace, out: &pxpl5_tests::SharedBytes| {
-                if streamed {
-                    v.finish().expect("writes to memory");
-                    String::from_utf8(out.bytes()).unwrap()
-                } else {
-                    v.to_string()
-                }
-            };
-            let plain_text = text(plain, &out_plain);
-            assert!(plain_text.lines().count() > 500, "a trace with changes");
-            assert_eq!(
-                text(joined, &out_joined),
-                plain_text,
-                "{window}, streamed {streamed}"
-            );
         }
     }
 }

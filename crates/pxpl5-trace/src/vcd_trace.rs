@@ -93,6 +93,9 @@ struct Signal {
     /// The value at the window start and when it was set (for folding changes recorded out of
     /// order: the latest one wins).
     initial: Option<(Tick, u64)>,
+    /// A streamed trace's wire set by spans ([`VcdTrace::span`]): the end of its latest span,
+    /// not recorded yet.
+    held_end: Option<Tick>,
 }
 
 /// A change inside the window, after its start: when, which wire (its index), the value.
@@ -302,6 +305,7 @@ impl VcdTrace {
             name: name.to_owned(),
             width,
             initial: None,
+            held_end: None,
         });
         self.scopes[scope.0].signals.push(id.0);
         Ok(id)
@@ -318,6 +322,7 @@ impl VcdTrace {
             name: name.to_owned(),
             width: 0,
             initial: Some((Tick::ZERO, initial)),
+            held_end: None,
         });
         self.scopes[scope.0].signals.push(id.0);
         id
@@ -392,6 +397,17 @@ impl VcdTrace {
             }
             at_settled = at == stream.settled;
         }
+        self.hold(signal, at, value, at_settled);
+    }
+
+    /// Holds a change inside the window (see [`VcdTrace::change`]): folded into the initial
+    /// value, kept as one at the settled instant, or kept to be sorted.
+    #[inline]
+    fn hold(&mut self, signal: SignalId, at: Tick, value: u64, at_settled: bool) {
+        let window = self.window;
+        if at >= window.end {
+            return;
+        }
         let s = &mut self.signals[signal.0];
         let value = mask(value, s.width);
         if at <= window.start {
@@ -403,6 +419,48 @@ impl VcdTrace {
             hold_settled(&mut self.at_settled, (at, signal.0, value));
         } else {
             self.changes.push((at, signal.0, value));
+        }
+    }
+
+    /// Records that 1-bit wire `signal` is 1 over `[start, end)`, as [`VcdTrace::change`] to 1
+    /// at `start` and to 0 at `end` does, for a wire set by spans alone, each starting no
+    /// earlier than the previous one ends (a unit's busy spans: it does one thing at a time).
+    ///
+    /// A streamed trace joins spans that follow one another at once: the end of the latest is
+    /// held back until the next span starts, or a write reaches it. A span that starts where
+    /// the previous one ended would set the wire to 0 and back to 1 at one instant, which the
+    /// file does not show; a Renderer's commands and a GP's busy spans mostly follow at once,
+    /// and the pairs were most of the changes of a machine's VCD, whose cost is per change.
+    pub fn span(&mut self, signal: SignalId, start: Tick, end: Tick) {
+        let Some(stream) = &self.stream else {
+            self.change(signal, start, 1);
+            self.change(signal, end, 0);
+            return;
+        };
+        let settled = stream.settled;
+        debug_assert!(
+            end >= start
+                && self.signals[signal.0]
+                    .held_end
+                    .is_none_or(|last| start >= last),
+            "VCD spans of one wire overlap or run backwards: a bug of the recorder"
+        );
+        match self.signals[signal.0].held_end.take() {
+            Some(last) if last == start => {}
+            Some(last) => {
+                // Held since before time settled there: recorded then, not at the settled
+                // instant (a write moves the ends it reaches first, so none is written past).
+                self.hold(signal, last, 0, false);
+                self.change(signal, start, 1);
+            }
+            None => self.change(signal, start, 1),
+        }
+        if end == settled {
+            // No span can start later at the settled instant and be joined: a change there
+            // now, after the start's (in the list of the settled instant, whose last wins).
+            self.change(signal, end, 0);
+        } else {
+            self.signals[signal.0].held_end = Some(end);
         }
     }
 
@@ -448,6 +506,16 @@ impl VcdTrace {
         // The header's initial values need every change at or before the window's start (the
         // end of time, at `finish`, writes the header even of a window starting there).
         if before > self.window.start || before == Tick(u64::MAX) {
+            // The spans' ends held back that this write reaches: no span can start at them any
+            // more (time settled past them), so each is the wire's last change there.
+            for index in 0..self.signals.len() {
+                if let Some(end) = self.signals[index].held_end
+                    && (end < before || before == Tick(u64::MAX))
+                {
+                    self.signals[index].held_end = None;
+                    self.hold(SignalId(index), end, 0, false);
+                }
+            }
             if stream.error.is_none() && stream.body.is_none() {
                 match self.begin_body(&mut stream.out) {
                     Ok(body) => stream.body = Some(body),
@@ -630,6 +698,7 @@ impl VcdTrace {
 /// Holds `change`, at the settled instant, in `settled` (the [`VcdTrace::at_settled`] list): after the
 /// changes of the same instant to later wires, which a recorder sampling its wires in turn
 /// records after it, so the walk back is short; in place of one at the same instant and wire.
+#[inline]
 fn hold_settled(settled: &mut Vec<Change>, change: Change) {
     let key = |c: &Change| (c.0, c.1);
     if settled.last().is_none_or(|last| key(last) < key(&change)) {

@@ -497,3 +497,68 @@ fn a_streamed_write_error_is_returned() {
     let err = t.finish().expect_err("nothing can be written");
     assert!(err.to_string().contains("disk full"), "{err}");
 }
+
+/// Spans give the VCD of a change to 1 at each start and to 0 at each end: joined by a streamed
+/// trace where one starts as the last ends, plain in a trace held in memory. Spans back to back,
+/// after gaps, of no length, at the settled instant and ahead of it, ending past the window,
+/// among changes to other wires, over several flushes, in windows that fold changes in and drop
+/// them.
+#[test]
+fn spans_write_the_changes_at_their_starts_and_ends() {
+    let windows = ["0..", "300ps..900ps", "1ps..", "50ns.."].map(|w| w.parse().unwrap());
+    for window in windows {
+        let out = SharedBytes::default();
+        let mut held = VcdTrace::new(window);
+        let mut plain = VcdTrace::new(window);
+        let mut streamed = VcdTrace::streamed(window, Box::new(out.clone()));
+        let mut wires = Vec::new();
+        for t in [&mut held, &mut plain, &mut streamed] {
+            let scope = t.scope("units");
+            wires = (0..3).map(|i| t.wire(scope, &format!("u{i}"), 1)).collect();
+            wires.push(t.wire(scope, "count", 4));
+        }
+        let mut next = pxpl5_tests::xorshift(0x00B5_5EED_0000_0001);
+        let mut free = [0u64; 3];
+        let mut now = 0u64;
+        for _ in 0..3 * VcdTrace::FLUSH_AT {
+            let r = next();
+            now += r % 3;
+            streamed.settle(Tick(now));
+            let w = (r >> 8) as usize % 4;
+            if w == 3 {
+                // Another wire, at the settled instant.
+                for t in [&mut held, &mut plain, &mut streamed] {
+                    t.change(wires[3], Tick(now), r >> 32);
+                }
+                continue;
+            }
+            // A unit's next span: at once after its last (most), or after a gap.
+            let gap = if (r >> 16) & 3 == 0 { (r >> 20) & 7 } else { 0 };
+            let start = free[w].max(now) + gap;
+            if start > now + 4 {
+                continue;
+            }
+            let end = start + (r >> 24) % 5;
+            held.span(wires[w], Tick(start), Tick(end));
+            streamed.span(wires[w], Tick(start), Tick(end));
+            plain.change(wires[w], Tick(start), 1);
+            plain.change(wires[w], Tick(end), 0);
+            free[w] = end;
+        }
+        for t in [&mut held, &mut plain, &mut streamed] {
+            t.set_end(Tick(now + 10));
+        }
+        streamed.finish().expect("writes to memory");
+        let plain = plain.to_string();
+        assert!(
+            plain.lines().count() > 100,
+            "a trace with changes in {window}"
+        );
+        assert_eq!(held.to_string(), plain, "held, {window}");
+        assert_eq!(
+            String::from_utf8(out.bytes()).unwrap(),
+            plain,
+            "streamed, {window}"
+        );
+    }
+}
