@@ -402,7 +402,7 @@ impl VcdTrace {
 
     /// Holds a change inside the window (see [`VcdTrace::change`]): folded into the initial
     /// value, kept as one at the settled instant, or kept to be sorted.
-    #[inline]
+    #[inline(always)]
     fn hold(&mut self, signal: SignalId, at: Tick, value: u64, at_settled: bool) {
         let window = self.window;
         if at >= window.end {
@@ -635,6 +635,15 @@ impl VcdTrace {
         let mut n = itoa::Buffer::new();
         let (mut i, mut j) = (0, 0);
         loop {
+            // The settled changes before the next one held ahead need no merging: most of them
+            // (a ring token's position, at every instant), in a run.
+            let bound = changes.get(i).map_or((Tick(u64::MAX), usize::MAX), key);
+            while let Some(&(at, index, value)) = settled.get(j)
+                && (at, index) < bound
+            {
+                j += 1;
+                self.write_change(out, body, &mut n, at, index, value)?;
+            }
             let from_settled = match (changes.get(i), settled.get(j)) {
                 (None, None) => break,
                 (Some(a), Some(b)) => key(b) <= key(a),
@@ -661,25 +670,41 @@ impl VcdTrace {
                 }
                 c
             };
-            if body.current[index] == value {
-                continue;
-            }
-            if at != body.last_time {
-                // As `vcd::Writer::timestamp` writes it.
-                body.text.push(b'#');
-                body.text.extend_from_slice(n.format(at.as_ps()).as_bytes());
-                body.text.push(b'\n');
-                body.last_time = at;
-            }
-            self.encode_value(body, index, value);
-            body.current[index] = value;
-            if body.text.len() >= 1 << 16 {
-                out.writer().write_all(&body.text)?;
-                body.text.clear();
-            }
+            self.write_change(out, body, &mut n, at, index, value)?;
         }
         out.writer().write_all(&body.text)?;
         body.text.clear();
+        Ok(())
+    }
+
+    /// Writes wire `index` taking `value` at `at`, the last change recorded there, if it
+    /// changes the wire's value; sends the text to `out` once it holds 64 KiB.
+    #[inline(always)]
+    fn write_change<W: Write>(
+        &self,
+        out: &mut vcd::Writer<W>,
+        body: &mut Body,
+        n: &mut itoa::Buffer,
+        at: Tick,
+        index: usize,
+        value: u64,
+    ) -> io::Result<()> {
+        if body.current[index] == value {
+            return Ok(());
+        }
+        if at != body.last_time {
+            // As `vcd::Writer::timestamp` writes it.
+            body.text.push(b'#');
+            body.text.extend_from_slice(n.format(at.as_ps()).as_bytes());
+            body.text.push(b'\n');
+            body.last_time = at;
+        }
+        self.encode_value(body, index, value);
+        body.current[index] = value;
+        if body.text.len() >= 1 << 16 {
+            out.writer().write_all(&body.text)?;
+            body.text.clear();
+        }
         Ok(())
     }
 
@@ -698,7 +723,7 @@ impl VcdTrace {
 /// Holds `change`, at the settled instant, in `settled` (the [`VcdTrace::at_settled`] list): after the
 /// changes of the same instant to later wires, which a recorder sampling its wires in turn
 /// records after it, so the walk back is short; in place of one at the same instant and wire.
-#[inline]
+#[inline(always)]
 fn hold_settled(settled: &mut Vec<Change>, change: Change) {
     let key = |c: &Change| (c.0, c.1);
     if settled.last().is_none_or(|last| key(last) < key(&change)) {
