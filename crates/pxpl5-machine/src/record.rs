@@ -493,6 +493,10 @@ impl Recorder {
                 None => (u32::MAX, false),
             };
             let (was_held, was_at) = self.token[ch];
+            if (held, node) == (was_held, was_at) {
+                // Nothing for either trace to record.
+                continue;
+            }
             if let Some(c) = &mut self.trace
                 && held != was_held
                 && ch < 64

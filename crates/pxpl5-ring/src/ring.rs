@@ -718,7 +718,10 @@ impl Ring {
             }
         } else {
             let d = t - tok.at;
-            let q = ((u64::from(tok.pos) + (d / self.p.hop) % u64::from(n)) % u64::from(n)) as u32;
+            // pos + (hops % n) < 2n: one subtraction wraps it (a division costs a VCD's sample
+            // of every channel at every instant dearly).
+            let q = u64::from(tok.pos) + (d / self.p.hop) % u64::from(n);
+            let q = q.checked_sub(u64::from(n)).unwrap_or(q) as u32;
             if d.is_multiple_of(self.p.hop) {
                 TokenLocation::At(NodeId(q))
             } else {

@@ -373,7 +373,7 @@ impl VcdTrace {
 
     /// Records that `signal` takes `value` at `at`. Bits above the wire's width are dropped, as
     /// when a Verilog value is assigned to a narrower wire.
-    #[inline]
+    #[inline(always)]
     pub fn change(&mut self, signal: SignalId, at: Tick, value: u64) {
         let window = self.window;
         if at >= window.end {
