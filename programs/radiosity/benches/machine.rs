@@ -2,7 +2,8 @@
 //! radiosity program, the empty Cornell box at 120 mm patches on the seed machine, for a few shots
 //! per method and fidelity level (the workload of `pxpl5 bench machine --shots 8`). Throughput is
 //! in simulated microseconds, so criterion's "elements/s" reads as simulated microseconds per host
-//! second: 1 M/s is real time.
+//! second: 1 M/s is real time. `sparse_vcd` is the default level with a VCD streamed to a sink:
+//! against `sparse`, what `--vcd` costs the simulation (the target is under 10 %).
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use pxpl5_machine::Recorder;
@@ -10,6 +11,7 @@ use pxpl5_radiosity::experiment::{self, MAIN_JOB_PATCH_SIZE, Settings};
 use pxpl5_radiosity::mesh::mesh;
 use pxpl5_radiosity::shot::Method;
 use pxpl5_renderer::Fidelity;
+use pxpl5_trace::TraceWindow;
 
 fn machine(c: &mut Criterion) {
     let cfg = pxpl5_config::default_config();
@@ -24,16 +26,29 @@ fn machine(c: &mut Criterion) {
             s.run.fidelity = fidelity;
             s
         };
-        let run = |fidelity| {
-            experiment::run(&cfg, &patches, &settings(fidelity), Recorder::default()).expect("runs")
+        let run_with = |fidelity, recorder| {
+            experiment::run(&cfg, &patches, &settings(fidelity), recorder).expect("runs")
         };
+        let run = |fidelity| run_with(fidelity, Recorder::default());
         let simulated_us = run(Fidelity::Integer).stats.end.as_ps() / 1_000_000;
         let mut group = c.benchmark_group(format!("cornell_{}_8_shots", method.name()));
         group.throughput(Throughput::Elements(simulated_us));
         group.sample_size(10);
-        for fidelity in [Fidelity::Bit, Fidelity::Integer] {
+        for fidelity in [Fidelity::Bit, Fidelity::Integer, Fidelity::Sparse] {
             group.bench_function(fidelity.name(), |b| b.iter(|| run(fidelity)));
         }
+        group.bench_function("sparse_vcd", |b| {
+            b.iter(|| {
+                let vcd = Recorder::new(None, Some(TraceWindow::all()))
+                    .stream_vcd(Box::new(std::io::sink()));
+                let mut result = run_with(Fidelity::Sparse, vcd);
+                result
+                    .recorder
+                    .finish_vcd()
+                    .expect("a sink takes every byte");
+                result
+            })
+        });
         group.finish();
     }
 }
