@@ -718,8 +718,8 @@ impl Ring {
             }
         } else {
             let d = t - tok.at;
-            // pos + (hops % n) < 2n: one subtraction wraps it (a division costs a VCD's sample
-            // of every channel at every instant dearly).
+            // pos < n and hops % n < n, so one subtraction wraps the sum: a division fewer in
+            // a call a VCD makes for every channel at every instant.
             let q = u64::from(tok.pos) + (d / self.p.hop) % u64::from(n);
             let q = q.checked_sub(u64::from(n)).unwrap_or(q) as u32;
             if d.is_multiple_of(self.p.hop) {
