@@ -638,11 +638,16 @@ impl VcdTrace {
             // The settled changes before the next one held ahead need no merging: most of them
             // (a ring token's position, at every instant), in a run.
             let bound = changes.get(i).map_or((Tick(u64::MAX), usize::MAX), key);
-            while let Some(&(at, index, value)) = settled.get(j)
-                && (at, index) < bound
-            {
-                j += 1;
-                self.write_change(out, body, &mut n, at, index, value)?;
+            let run = settled[j..].partition_point(|c| key(c) < bound);
+            let end = j + run;
+            while j < end {
+                j += write_run(&settled[j..end], body, &mut n);
+                if j < end {
+                    // A change the run could not take: the text is full, or its line is not kept.
+                    let (at, index, value) = settled[j];
+                    j += 1;
+                    self.write_change(out, body, &mut n, at, index, value)?;
+                }
             }
             let from_settled = match (changes.get(i), settled.get(j)) {
                 (None, None) => break,
@@ -718,6 +723,51 @@ impl VcdTrace {
         }
         out.flush()
     }
+}
+
+/// Writes the changes of `run` (sorted, one per instant and wire) as
+/// [`VcdTrace::write_change`] does, as long as each one's line is kept and the text holds less
+/// than 64 KiB; returns how many it wrote. The loop of a flush: most changes are a ring token's
+/// position, held at the settled instant in a run, and this keeps the body's state in registers
+/// (through `write_change`, a change took about 70 instructions, most of them loads and stores
+/// of it).
+#[inline(never)]
+fn write_run(run: &[Change], body: &mut Body, n: &mut itoa::Buffer) -> usize {
+    let Body {
+        current,
+        last_time,
+        lines,
+        text,
+        ..
+    } = body;
+    let mut last = *last_time;
+    let mut done = 0;
+    for &(at, index, value) in run {
+        if text.len() >= 1 << 16 {
+            break;
+        }
+        let Some(line) = lines[index].get(value as usize).filter(|l| l.len != 0) else {
+            break;
+        };
+        done += 1;
+        let current = &mut current[index];
+        if *current == value {
+            continue;
+        }
+        *current = value;
+        if at != last {
+            // As `vcd::Writer::timestamp` writes it.
+            text.push(b'#');
+            text.extend_from_slice(n.format(at.as_ps()).as_bytes());
+            text.push(b'\n');
+            last = at;
+        }
+        let end = text.len() + line.len as usize;
+        text.extend_from_slice(&line.bytes);
+        text.truncate(end);
+    }
+    *last_time = last;
+    done
 }
 
 /// Holds `change`, at the settled instant, in `settled` (the [`VcdTrace::at_settled`] list): after the
@@ -882,13 +932,13 @@ fn id_code(index: usize) -> IdCode {
     IdCode::from(index as u64)
 }
 
+#[inline(always)]
 fn mask(value: u64, width: u32) -> u64 {
-    // Width 0 is a string variable: its value is an index, never masked.
-    if width >= 64 || width == 0 {
-        value
-    } else {
-        value & ((1u64 << width) - 1)
-    }
+    // Width 0 is a string variable: its value is an index, never masked. A wire is 1 to
+    // MAX_WIDTH bits, so (64 - width) mod 64 is the shift for every width, 0 and 64 giving the
+    // whole value: no branch, in a call made at every change.
+    debug_assert!(width <= MAX_WIDTH);
+    value & (u64::MAX >> (64u32.wrapping_sub(width) & 63))
 }
 
 /// `name` as a VCD name: printable ASCII other than space kept, everything else `_`.
@@ -919,6 +969,12 @@ mod tests {
         assert_eq!(mask(0x1ff, 8), 0xff);
         assert_eq!(mask(3, 1), 1);
         assert_eq!(mask(u64::MAX, 64), u64::MAX);
+        assert_eq!(mask(u64::MAX, 63), u64::MAX >> 1);
+        // A string variable's value, a text's index, is kept whole.
+        assert_eq!(mask(u64::MAX - 1, 0), u64::MAX - 1);
+        for width in 1..64 {
+            assert_eq!(mask(u64::MAX, width), (1 << width) - 1, "width {width}");
+        }
     }
 
     /// The radix sort is the standard library's stable sort by (time, wire): on batches shaped
