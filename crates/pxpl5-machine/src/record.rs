@@ -26,7 +26,7 @@
 
 use std::collections::{BTreeMap, VecDeque};
 
-use pxpl5_ring::{Delivery, MessageId, NodeId, Ring, TokenLocation};
+use pxpl5_ring::{Delivery, MessageId, NodeId, Ring};
 use pxpl5_sim::Tick;
 use pxpl5_trace::{
     Args, ChromeTrace, EventTrace, FlowStep, JsonValue, PerfettoTrace, SignalId, TextValue,
@@ -480,42 +480,39 @@ impl Recorder {
                 self.queue_words[i] = (out, inp);
             }
         }
-        if let Some(v) = &mut self.vcd {
-            // Every change is recorded at the machine's current instant or later (a unit's busy
-            // span, a Renderer command, a ring sample start now), and time never moves back.
+        // Every change is recorded at the machine's current instant or later (a unit's busy
+        // span, a Renderer command, a ring sample start now), and time never moves back.
+        let mut sample = self.vcd.as_mut().map(|v| {
             v.settle(now);
-        }
-        for ch in 0..self.token.len() {
-            let (node, held) = match ring.token_at(ch as u32) {
-                Some(TokenLocation::Held { by }) => (by.0, true),
-                Some(TokenLocation::At(n)) => (n.0, false),
-                Some(TokenLocation::Between { from, .. }) => (from.0, false),
-                None => (u32::MAX, false),
-            };
-            let (was_held, was_at) = self.token[ch];
+            v.sample(now)
+        });
+        let channels = self.token.iter_mut().zip(ring.token_nodes()).enumerate();
+        for (ch, (last, (node, held))) in channels {
+            let node = node.0;
+            let (was_held, was_at) = *last;
             if (held, node) == (was_held, was_at) {
                 // Nothing for either trace to record.
                 continue;
             }
-            if let Some(c) = &mut self.trace
-                && held != was_held
+            *last = (held, node);
+            if held != was_held
+                && let Some(c) = &mut self.trace
                 && ch < 64
             {
                 let process = &self.counter_names.channels[ch];
                 c.counter(process, "token held", now, i64::from(held));
             }
-            if let (Some(v), Some(s)) = (&mut self.vcd, &self.signals) {
+            if let (Some(v), Some(s)) = (&mut sample, &self.signals) {
                 if node != was_at {
                     let text = s.node_text.get(node as usize).copied();
-                    v.change_to(s.token_at[ch], now, text.unwrap_or(s.no_node));
+                    v.change_to(s.token_at[ch], text.unwrap_or(s.no_node));
                 }
                 // Only a change: the VCD writes a wire only when its value changes, so a sample
                 // equal to the last one would be dropped there anyway.
                 if held != was_held {
-                    v.change(s.token_held[ch], now, u64::from(held));
+                    v.change(s.token_held[ch], u64::from(held));
                 }
             }
-            self.token[ch] = (held, node);
         }
     }
 

@@ -697,21 +697,43 @@ impl Ring {
     /// that edge's capture decision; `None` for a channel the ring does not have.
     pub fn token_at(&self, channel: u32) -> Option<TokenLocation> {
         let tok = *self.flow.tokens.get(channel as usize)?;
+        Some(self.locate(tok, self.holders[channel as usize]))
+    }
+
+    /// Every channel's token, in channel order, as [`Ring::token_at`] finds it, reduced to one
+    /// node and whether it is held: the holder, or the node it stands at or last left. What a
+    /// trace samples at every instant (a VCD shows each channel's token position), so the
+    /// channels are walked in one pass.
+    pub fn token_nodes(&self) -> impl Iterator<Item = (NodeId, bool)> + '_ {
+        self.flow
+            .tokens
+            .iter()
+            .zip(&self.holders)
+            .map(|(&tok, &holder)| match self.locate(tok, holder) {
+                TokenLocation::Held { by } => (by, true),
+                TokenLocation::At(n) | TokenLocation::Between { from: n, .. } => (n, false),
+            })
+    }
+
+    /// Where token `tok`, held as `holder` says, is at the first clock edge at or after
+    /// [`Ring::now`] (see [`Ring::token_at`]).
+    #[inline(always)]
+    fn locate(&self, tok: Token, holder: Option<Holder>) -> TokenLocation {
         let t = self.flow.next_clock;
-        if let Some(h) = self.holders[channel as usize]
+        if let Some(h) = holder
             && h.start < t
             && t < h.release
         {
-            return Some(TokenLocation::Held { by: NodeId(h.by) });
+            return TokenLocation::Held { by: NodeId(h.by) };
         }
         if self.p.level == RingLevel::Message {
             // A free channel has no position at this level: it stands wherever a packet waits.
             // It is reported at its last sender.
-            return Some(TokenLocation::At(NodeId(tok.pos)));
+            return TokenLocation::At(NodeId(tok.pos));
         }
         let n = self.p.nodes;
         let prev = |q: u32| NodeId((q + n - 1) % n);
-        Some(if tok.at > t {
+        if tok.at > t {
             TokenLocation::Between {
                 from: prev(tok.pos),
                 to: NodeId(tok.pos),
@@ -730,7 +752,7 @@ impl Ring {
                     to: NodeId((q + 1) % n),
                 }
             }
-        })
+        }
     }
 
     /// The statistics as of [`Ring::now`].

@@ -446,6 +446,17 @@ fn a_full_destination_holds_packets_until_consume() {
     assert!(ring.is_idle());
 }
 
+/// `token_nodes`, a trace's sample of every channel at once, is `token_at` reduced to a node.
+fn assert_tokens_sampled(ring: &Ring) {
+    let want: Vec<(NodeId, bool)> = (0..ring.channels())
+        .map(|ch| match ring.token_at(ch).unwrap() {
+            TokenLocation::Held { by } => (by, true),
+            TokenLocation::At(n) | TokenLocation::Between { from: n, .. } => (n, false),
+        })
+        .collect();
+    assert_eq!(ring.token_nodes().collect::<Vec<_>>(), want);
+}
+
 /// A fixed pseudo-random workload (the project's seeded generator; no randomness source).
 fn workload(ring: &mut Ring, seed: u64) -> (Vec<Delivery>, pxpl5_ring::RingStats) {
     let mut rng = pxpl5_geom::rng::Lcg::new(seed);
@@ -464,6 +475,7 @@ fn workload(ring: &mut Ring, seed: u64) -> (Vec<Delivery>, pxpl5_ring::RingStats
             next(1 << 20),
         );
         ring.advance(now + Tick(next(3) * 40_000));
+        assert_tokens_sampled(ring);
         for d in ring.take_deliveries() {
             ring.consume(d.id).unwrap();
             all.push(d);

@@ -49,7 +49,7 @@ pub use event_trace::EventTrace;
 pub use json::JsonValue;
 pub use perfetto::{PerfettoTrace, read_packets};
 pub use pxpl5_sim::Tick;
-pub use vcd_trace::{MAX_WIDTH, ScopeId, SignalId, TextValue, VcdTrace, WidthError};
+pub use vcd_trace::{MAX_WIDTH, Sample, ScopeId, SignalId, TextValue, VcdTrace, WidthError};
 pub use window::{
     TimeErrorKind, TimeParseError, TraceWindow, WindowParseError, format_time, parse_time,
 };

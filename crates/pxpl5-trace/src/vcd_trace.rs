@@ -400,6 +400,21 @@ impl VcdTrace {
         self.hold(signal, at, value, at_settled);
     }
 
+    /// Changes at one instant `at`, recorded through the returned [`Sample`] as
+    /// [`VcdTrace::change`] would record each: for a recorder that samples many wires at every
+    /// instant (a ring token's position), the window and the settled instant are looked at once
+    /// per instant instead of once per change.
+    pub fn sample(&mut self, at: Tick) -> Sample<'_> {
+        let settled = self.stream.as_ref().is_some_and(|s| s.settled == at)
+            && self.window.start < at
+            && at < self.window.end;
+        Sample {
+            at,
+            settled,
+            trace: self,
+        }
+    }
+
     /// Holds a change inside the window (see [`VcdTrace::change`]): folded into the initial
     /// value, kept as one at the settled instant, or kept to be sorted.
     #[inline(always)]
@@ -768,6 +783,34 @@ fn write_run(run: &[Change], body: &mut Body, n: &mut itoa::Buffer) -> usize {
     }
     *last_time = last;
     done
+}
+
+/// Changes at one instant ([`VcdTrace::sample`]).
+pub struct Sample<'a> {
+    at: Tick,
+    /// Whether `at` is a streamed trace's settled instant, inside the window after its start:
+    /// each change is then held in [`VcdTrace::at_settled`] with no other check.
+    settled: bool,
+    trace: &'a mut VcdTrace,
+}
+
+impl Sample<'_> {
+    /// Records that `signal` takes `value` at the sample's instant: [`VcdTrace::change`].
+    #[inline(always)]
+    pub fn change(&mut self, signal: SignalId, value: u64) {
+        if self.settled {
+            let value = mask(value, self.trace.signals[signal.0].width);
+            hold_settled(&mut self.trace.at_settled, (self.at, signal.0, value));
+        } else {
+            self.trace.change(signal, self.at, value);
+        }
+    }
+
+    /// [`Sample::change`] to a text named by [`VcdTrace::text_value`].
+    #[inline(always)]
+    pub fn change_to(&mut self, signal: SignalId, value: TextValue) {
+        self.change(signal, value.0);
+    }
 }
 
 /// Holds `change`, at the settled instant, in `settled` (the [`VcdTrace::at_settled`] list): after the

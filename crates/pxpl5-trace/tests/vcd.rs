@@ -432,14 +432,28 @@ fn a_streamed_trace_writes_the_bytes_of_one_held_in_memory() {
             // Half of them at the settled instant itself, the edge a flush must not cross.
             let at = Tick(now + if r & 1 == 0 { 0 } else { (r >> 8) % 40 });
             let k = (r % 4) as usize;
+            // A quarter of them through a sample of the instant (the path of a recorder's
+            // per-instant samples): the same changes. Values up to 299 are masked by the
+            // narrow wires.
+            let sampled = (r >> 40) % 4 == 0;
             if k == 3 {
                 let (a, b) = texts[(r >> 20) as usize % texts.len()];
-                held.change_to(wires[k], at, a);
-                streamed.change_to(wires[k], at, b);
+                if sampled {
+                    held.sample(at).change_to(wires[k], a);
+                    streamed.sample(at).change_to(wires[k], b);
+                } else {
+                    held.change_to(wires[k], at, a);
+                    streamed.change_to(wires[k], at, b);
+                }
             } else {
-                let value = (r >> 32) % 5;
-                held.change(wires[k], at, value);
-                streamed.change(wires[k], at, value);
+                let value = (r >> 32) % 300;
+                if sampled {
+                    held.sample(at).change(wires[k], value);
+                    streamed.sample(at).change(wires[k], value);
+                } else {
+                    held.change(wires[k], at, value);
+                    streamed.change(wires[k], at, value);
+                }
             }
             most = most.max(streamed.held_changes());
         }
