@@ -6,6 +6,8 @@ use std::io::{BufRead, BufReader};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
+use pxpl5_tests::OutDir;
+
 fn pxpl5(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_pxpl5"))
         .args(args)
@@ -22,12 +24,32 @@ fn text(b: &[u8]) -> String {
     String::from_utf8_lossy(b).into_owned()
 }
 
-fn temp_file(name: &str, contents: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("pxpl5-cli-test-{}", std::process::id()));
+/// A file `name` holding `contents`, in a directory of its own removed when the test passes.
+fn temp_file(name: &str, contents: &str) -> TempFile {
+    let dir = OutDir::new("pxpl5-cli-test", name);
     std::fs::create_dir_all(&dir).unwrap();
-    let p = dir.join(name);
-    std::fs::write(&p, contents).unwrap();
-    p
+    let path = dir.join(name);
+    std::fs::write(&path, contents).unwrap();
+    TempFile { _dir: dir, path }
+}
+
+/// What [`temp_file`] writes: its path, and the directory that goes with it.
+struct TempFile {
+    _dir: OutDir,
+    path: PathBuf,
+}
+
+impl std::ops::Deref for TempFile {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.path
+    }
+}
+
+impl AsRef<Path> for TempFile {
+    fn as_ref(&self) -> &Path {
+        &self.path
+    }
 }
 
 #[test]
@@ -217,10 +239,8 @@ fn help_explains_each_subcommand() {
     assert_eq!(out.status.code(), Some(2));
 }
 
-fn out_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("pxpl5-cli-run-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
+fn out_dir(name: &str) -> OutDir {
+    OutDir::new("pxpl5-cli-run", name)
 }
 
 /// `pxpl5 run` on the small scene of the minimal machine: the arguments every such test starts
@@ -1270,7 +1290,7 @@ fn a_dash_sends_a_trace_to_stdout_and_the_report_to_stderr() {
 /// The seed machine with a 1 kHz Renderer clock: with `--time-limit 30s`, radiosity's form-factor
 /// runs of one shot in big patches fit the limit (18 s and 14 s simulated), the picture's render
 /// does not (44 s), so it fails after everything else was computed.
-fn slow_renderer_config() -> PathBuf {
+fn slow_renderer_config() -> TempFile {
     let seed = std::fs::read_to_string(root().join("machine-configs/seed-tr89-002.ron")).unwrap();
     let clock = "clock_hz: 40_000_000, // [paper]";
     assert_eq!(
@@ -1314,10 +1334,10 @@ fn a_failed_run_leaves_the_output_directory_as_it_found_it() {
     // start, several in one new directory (before, the one that made it went first and the
     // directory stayed behind, empty).
     for (out_d, trace) in [
-        (&absent, "t.json"),
-        (&absent, "t.pftrace"),
-        (&present, "t.json"),
-        (&present, "t.pftrace"),
+        (absent.as_path(), "t.json"),
+        (absent.as_path(), "t.pftrace"),
+        (&*present, "t.json"),
+        (&*present, "t.pftrace"),
     ] {
         // Both methods run, with item buffers and traces; the picture's render fails last.
         let out = pxpl5(&[
@@ -1891,7 +1911,7 @@ fn stats_diff_names_what_changed_with_an_exit_code_ci_can_use() {
 
 /// `machine-configs/minimal.ron` with `from` replaced by `to` (which must occur once), as a
 /// temporary file.
-fn minimal_with(name: &str, from: &str, to: &str) -> PathBuf {
+fn minimal_with(name: &str, from: &str, to: &str) -> TempFile {
     let text = std::fs::read_to_string(root().join("machine-configs/minimal.ron")).unwrap();
     assert_eq!(text.matches(from).count(), 1, "{from}");
     temp_file(name, &text.replacen(from, to, 1))
@@ -2312,7 +2332,7 @@ fn trace_timeline_draws_a_row_per_track_with_the_critical_path_on_top() {
 /// the program's result it is a user error naming the option.
 #[test]
 fn approximate_levels_are_named_and_refused_where_they_cannot_serve() {
-    let dir = std::env::temp_dir().join(format!("pxpl5-cli-test-approx-{}", std::process::id()));
+    let dir = out_dir("approx");
     let d = dir.to_str().unwrap();
     let o = pxpl5(&[
         "radiosity",
@@ -2380,7 +2400,7 @@ fn approximate_levels_are_named_and_refused_where_they_cannot_serve() {
 /// window with nothing in it is a user error.
 #[test]
 fn trace_utilisation_agrees_with_the_stats() {
-    let dir = std::env::temp_dir().join(format!("pxpl5-cli-test-util-{}", std::process::id()));
+    let dir = out_dir("util");
     let d = dir.to_str().unwrap();
     for trace in ["t.json", "t.pftrace"] {
         let file = dir.join(trace);

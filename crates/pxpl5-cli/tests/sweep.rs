@@ -2,8 +2,10 @@
 //! a run resumed after it stopped; a bad parameter is a user error naming it. Every study here is
 //! tiny (27 patches, 4 shots, resolutions 16 and 32), a fraction of a second a point.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
+
+use pxpl5_tests::OutDir;
 
 fn pxpl5(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_pxpl5"))
@@ -26,10 +28,8 @@ fn csv_rows(csv: &str) -> Vec<Vec<&str>> {
 }
 
 /// A fresh directory for `name`'s outputs.
-fn dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("pxpl5-sweep-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
+fn dir(name: &str) -> OutDir {
+    OutDir::new("pxpl5-sweep-test", name)
 }
 
 /// The tiny study: 2 Renderer counts x 2 resolutions, both methods.
@@ -119,7 +119,7 @@ fn workers_shards_and_resumes_give_the_same_bytes() {
     assert_same(&one, &four);
 
     // Shards, merged.
-    let shards: Vec<PathBuf> = (0..3).map(|k| dir(&format!("shard{k}"))).collect();
+    let shards: Vec<OutDir> = (0..3).map(|k| dir(&format!("shard{k}"))).collect();
     for (k, s) in shards.iter().enumerate() {
         sweep(s, &["--shard", &format!("{k}/3")]);
     }
