@@ -435,7 +435,7 @@ fn a_streamed_trace_writes_the_bytes_of_one_held_in_memory() {
             // A quarter of them through a sample of the instant (the path of a recorder's
             // per-instant samples): the same changes. Values up to 299 are masked by the
             // narrow wires.
-            let sampled = (r >> 40) % 4 == 0;
+            let sampled = (r >> 40).is_multiple_of(4);
             if k == 3 {
                 let (a, b) = texts[(r >> 20) as usize % texts.len()];
                 if sampled {
