@@ -37,7 +37,10 @@
 //! hemisphere receiver's edge whose side holds the zenith: `pos OR inside`, the ellipse's box
 //! found exactly from the discriminants of its rows and columns) narrows the box, each in turn,
 //! twice over; where every conjunct is exactly a half-plane, a row is its base's on one span,
-//! the half-planes' intersection. Materialising a flag replays its layers in order, as the
+//! the half-planes' intersection. Where a region has an ellipse, the box's rows are taken in
+//! bands halved down to a few rows, each narrowed to the columns every conjunct's region may
+//! meet over the band (bounded in f64 with a margin for every rounding), and a band with none
+//! left is not solved. Materialising a flag replays its layers in order, as the
 //! commands would have.
 //! Both are exact: a row or column is left out only where a conjunct is false at every pixel of
 //! it, and every row is solved from the same expressions by the same row solver as `integer`'s
@@ -536,7 +539,7 @@ impl SparseEngine {
         plane[(area.y1 + 1) * gpr..].fill(0);
         // Every step exactly its half-plane: one span a row.
         let exact = |b: &Bound| match *b {
-            Bound::Half(h, true) => Some(h),
+            Bound::Half(h, true, _) => Some(h),
             _ => None,
         };
         if bounds.len() == steps.len()
@@ -546,9 +549,18 @@ impl SparseEngine {
         }
         // The seed's 128-pixel row is two groups: buffers whose length the compiler knows are
         // cleared by two stores where a slice's `fill` is a `memset` call.
+        // Bands are halved only about an ellipse (`and_rows`).
+        let ellipses = bounds
+            .iter()
+            .any(|b| matches!(b, Bound::Half(_, _, Some(_)) | Bound::HalfOrBox(..)));
+        let bands: Vec<BandBound> = match ellipses {
+            true => bounds.iter().filter_map(BandBound::of).collect(),
+            false => Vec::new(),
+        };
+        let steps = (&steps[..], &bands[..]);
         match g.groups_per_row {
-            2 => and_rows(ep, &steps, area, plane, Rows::new(ep, g, [0u64; 2])),
-            n => and_rows(ep, &steps, area, plane, Rows::new(ep, g, vec![0u64; n])),
+            2 => and_rows(ep, steps, area, plane, Rows::new(ep, g, [0u64; 2])),
+            n => and_rows(ep, steps, area, plane, Rows::new(ep, g, vec![0u64; n])),
         }
     }
 
@@ -737,7 +749,18 @@ impl Step {
         if let Some(h) = self.half_plane(signs) {
             // A step of one test is `op(p, 0)` (`Step::of`), neither constant: then it is p or
             // !p, exactly its half-plane.
-            return Some(Bound::Half(h, self.first == self.second));
+            let exact = self.first == self.second;
+            // Inside the half-plane, where the first test is p1, the step is false where the
+            // second is q0 (`op(p1, q0)` = 0): a hemisphere receiver's edge whose side does not
+            // hold the zenith (`pos AND outside`) is false inside its ellipse.
+            let p1 = self.depends.0 == 0 && !eval(self.op, false, true);
+            let second = &signs[self.second as usize];
+            let cut = [false, true]
+                .into_iter()
+                .find(|&q0| !eval(self.op, p1, q0))
+                .filter(|_| !exact && !second.checks)
+                .and_then(|q0| Ellipse::of(second, !q0));
+            return Some(Bound::Half(h, exact, cut));
         }
         if self.first == self.second || signs[self.second as usize].checks {
             return None;
@@ -749,7 +772,7 @@ impl Step {
             .find_map(|[p0, q0]| {
                 let h = side(&signs[self.first as usize], !p0)?;
                 let e = Ellipse::of(&signs[self.second as usize], q0)?;
-                Some(Bound::HalfOrBox(h, e.box_in(area)))
+                Some(Bound::HalfOrBox(h, e.box_in(area), e))
             })
     }
 }
@@ -775,10 +798,11 @@ fn side(t: &SignTerm, positive: bool) -> Option<[i64; 3]> {
 /// A region outside which a step is false, in board pixel coordinates.
 enum Bound {
     /// `k0 + kx px + ky py >= 0`; whether the step is exactly that half-plane, not only false
-    /// outside it.
-    Half([i64; 3], bool),
-    /// The half-plane, or the box that holds an ellipse's pixels (`None`: it has none).
-    HalfOrBox([i64; 3], Option<Area>),
+    /// outside it; and an ellipse inside which it is false, where it has one.
+    Half([i64; 3], bool, Option<Ellipse>),
+    /// The half-plane, or the box that holds an ellipse's pixels (`None`: it has none), and
+    /// the ellipse.
+    HalfOrBox([i64; 3], Option<Area>, Ellipse),
 }
 
 impl Bound {
@@ -786,8 +810,8 @@ impl Bound {
     /// is.
     fn narrow(&self, area: Area) -> Option<Area> {
         match self {
-            Bound::Half(h, _) => narrow(*h, area),
-            Bound::HalfOrBox(h, e) => {
+            Bound::Half(h, ..) => narrow(*h, area),
+            Bound::HalfOrBox(h, e, _) => {
                 let e = e.and_then(|e| e.meet(area));
                 match (narrow(*h, area), e) {
                     (Some(a), Some(b)) => Some(a.hull(b)),
@@ -1006,52 +1030,345 @@ fn half_plane_rows(
 
 /// The chain's AND on every row of `area` into `plane` (each of those rows written whole).
 ///
-/// Tried and dropped: culling a row before solving it, by each step's region narrowed to the
-/// row (its half-plane's span, and its ellipse's chord from the row's discriminant in f64,
-/// widened by a bound on the rounding). On `bench renderer`'s hemisphere stream it culled 46 K
-/// of the 50 K rows that end empty (of 58 K solved), but a row's cull cost about 300
-/// instructions against about 500 for solving it: 63.5 M became 61.3 M instructions, and the
-/// hemicube stream's 36.2 M became 38.7 M. Rows would have to be skipped in bands, not one by
-/// one, to pay.
+/// Rows are taken in bands: a band that no pixel of some step's region meets is left empty
+/// unsolved, and a band's columns narrowed to where every step's may hold (`BandBound::span`);
+/// a band that survives is halved until it is [`BAND_ROWS`] rows, solved row by row. On the
+/// hemisphere, most rows of a receiver's area lie outside the receiver, left empty by one or
+/// two edges (`bench renderer`'s stream: 50 K of 58 K rows, each costing about 500
+/// instructions to solve).
+///
+/// Tried and dropped before this: culling each row before solving it, by each step's region
+/// narrowed to the row. It culled 46 K of those 50 K rows, but a row's cull cost about 300
+/// instructions: 63.5 M became 61.3 M instructions on the hemisphere stream, and the hemicube
+/// stream's 36.2 M became 38.7 M.
 #[inline(always)]
 fn and_rows<B: AsMut<[u64]> + AsRef<[u64]> + Clone>(
     ep: &Epoch,
-    steps: &[Step],
+    (steps, bands): (&[Step], &[BandBound]),
     area: Area,
     plane: &mut [u64],
     mut rows: Rows<B>,
 ) {
     let mut mask = rows.a.clone();
     let gpr = mask.as_ref().len();
-    // The area's columns as a row mask, made once rather than per row.
     let mut columns = rows.a.clone();
-    let cols = columns.as_mut();
-    cols.fill(0);
-    for_span_words(area.x0, area.x1, |i, m| cols[i] = m);
     let mut killer = 0;
-    for py in area.y0..=area.y1 {
-        let at = py * gpr;
-        let words = mask.as_mut();
-        for ((w, &b), &c) in words
-            .iter_mut()
-            .zip(&ep.base[at..at + gpr])
-            .zip(columns.as_ref())
-        {
-            *w = b & c;
+    // Where every region is a half-plane (a hemicube receiver's with one edge not exactly its
+    // half-plane) a band meets what the area does: the area, narrowed by them already, is one
+    // band.
+    let halved = bands.iter().any(|b| !matches!(b.shape, Shape::Half));
+    // Bands still to solve, the next on top: each with the columns its parent left, and whether
+    // they are narrowed to it yet (the area is). Halving adds one to the stack a level, and 13
+    // levels take the most rows a board has (2^16, by `renderer.qee.coordinate_bits`) to a
+    // band; a band the stack has no room to halve is solved row by row.
+    let mut todo = [(0, 0, (0, 0), false); 16];
+    todo[0] = (area.y0, area.y1, (area.x0, area.x1), true);
+    let mut pending = 1;
+    while pending > 0 {
+        pending -= 1;
+        let (ya, yb, span, narrowed) = todo[pending];
+        let span = if narrowed {
+            span
+        } else if let Some(span) = band_span(bands, ya, yb, span) {
+            span
+        } else {
+            plane[ya * gpr..(yb + 1) * gpr].fill(0);
+            continue;
+        };
+        if halved && yb - ya >= BAND_ROWS && pending + 2 <= todo.len() {
+            let mid = ya + (yb - ya) / 2;
+            todo[pending] = (mid + 1, yb, span, false);
+            todo[pending + 1] = (ya, mid, span, false);
+            pending += 2;
+            continue;
         }
-        if words.iter().any(|&w| w != 0) {
-            // The steps from the killer on, round to the one before it; a step that leaves no
-            // pixel leaves the mask zero.
-            let mut j = killer;
-            for _ in 0..steps.len() {
-                if !rows.and_step(&steps[j], py, &mut mask) {
-                    killer = j;
-                    break;
+        let (x0, x1) = span;
+        // The band's columns as a row mask, made once rather than per row.
+        let cols = columns.as_mut();
+        cols.fill(0);
+        for_span_words(x0, x1, |i, m| cols[i] = m);
+        for py in ya..=yb {
+            let at = py * gpr;
+            let words = mask.as_mut();
+            for ((w, &b), &c) in words
+                .iter_mut()
+                .zip(&ep.base[at..at + gpr])
+                .zip(columns.as_ref())
+            {
+                *w = b & c;
+            }
+            if words.iter().any(|&w| w != 0) {
+                // The steps from the killer on, round to the one before it; a step that leaves
+                // no pixel leaves the mask zero.
+                let mut j = killer;
+                for _ in 0..steps.len() {
+                    if !rows.and_step(&steps[j], py, &mut mask) {
+                        killer = j;
+                        break;
+                    }
+                    j = if j + 1 == steps.len() { 0 } else { j + 1 };
                 }
-                j = if j + 1 == steps.len() { 0 } else { j + 1 };
+            }
+            plane[at..at + gpr].copy_from_slice(mask.as_ref());
+        }
+    }
+}
+
+/// Rows in a band solved row by row, less one: halving stops below this. On `bench
+/// renderer`'s hemisphere stream, 8 to 16 cost least (within 0.3 %); 4, 2.6 % more; 32,
+/// 1.4 % more.
+const BAND_ROWS: usize = 12;
+
+/// Columns `lo ..= hi` of rows `ya ..= yb` narrowed by every step's region in turn (a narrower
+/// span narrows the next step's); `None` if some region meets none of them. Once over: a
+/// second pass, as `chain_plane` makes over the area, cost 3 M instructions more than it saved
+/// on `bench renderer`'s hemisphere stream.
+#[inline(always)]
+fn band_span(
+    bands: &[BandBound],
+    ya: usize,
+    yb: usize,
+    span: (usize, usize),
+) -> Option<(usize, usize)> {
+    bands
+        .iter()
+        .try_fold(span, |(lo, hi), b| b.span(ya, yb, lo, hi))
+}
+
+/// A step's region as `and_rows` narrows a band of rows by it, with its constants found once a
+/// chain: the half-plane `k0 + kx px + ky py >= 0` (at board pixel (px, py)) and its ellipse.
+struct BandBound {
+    half_plane: [i64; 3],
+    shape: Shape,
+}
+
+enum Shape {
+    /// The half-plane alone.
+    Half,
+    /// The half-plane less the ellipse (a hemisphere receiver's edge whose side does not hold
+    /// the zenith).
+    Less(Chords),
+    /// The half-plane or the ellipse (an edge whose side holds it), with the box of the
+    /// ellipse's pixels in the area and its extreme points' rows.
+    Or(Chords, Area, Extremes),
+}
+
+impl BandBound {
+    /// The band bound of `bound`; `None` where it has none (an ellipse too large for
+    /// `Chords`, where the region is more than the half-plane).
+    fn of(bound: &Bound) -> Option<BandBound> {
+        let (half_plane, shape) = match *bound {
+            Bound::Half(h, _, cut) => {
+                let shape = cut.and_then(Chords::of).map_or(Shape::Half, Shape::Less);
+                (h, shape)
+            }
+            // No pixel of the area is inside the ellipse.
+            Bound::HalfOrBox(h, None, _) => (h, Shape::Half),
+            Bound::HalfOrBox(h, Some(b), e) => {
+                let chords = Chords::of(e)?;
+                let extremes = Extremes::of(e)?;
+                (h, Shape::Or(chords, b, extremes))
+            }
+        };
+        Some(BandBound { half_plane, shape })
+    }
+
+    /// Columns `lo ..= hi` narrowed to a span that holds every pixel of them, on rows
+    /// `ya ..= yb`, in the region; `None` if none is. The smallest such span for a half-plane;
+    /// about an ellipse, only what its chords surely decide (`Chords::at`).
+    #[inline(always)]
+    fn span(&self, ya: usize, yb: usize, lo: usize, hi: usize) -> Option<(usize, usize)> {
+        // c: the half-plane's largest value at pixel 0 of the band's rows, inside the
+        // window's unwrapped range as every value on the board is (`Step::half_plane`); the
+        // division only where the span's ends disagree.
+        let [k0, kx, ky] = self.half_plane;
+        let c = k0 + (ky * ya as i64).max(ky * yb as i64);
+        let half = match (c + kx * lo as i64 >= 0, c + kx * hi as i64 >= 0) {
+            (true, true) => Some((lo, hi)),
+            (false, false) => None,
+            _ => half_line(c, kx, lo, hi),
+        };
+        let (fa, fb) = (ya as f64, yb as f64);
+        match &self.shape {
+            Shape::Half => half,
+            Shape::Less(chords) => {
+                let (lo, hi) = half?;
+                // The columns surely inside the ellipse on every row of the band: its left
+                // end is convex in the row and its right end concave (the discriminant is
+                // concave, its square root too), so the band's ends bound them.
+                let (Some((a0, a1)), Some((b0, b1))) = (chords.at(fa, false), chords.at(fb, false))
+                else {
+                    return Some((lo, hi));
+                };
+                let (x0, x1) = (a0.max(b0), a1.min(b1));
+                let (lo_f, hi_f) = (lo as f64, hi as f64);
+                // An end they cover moves past them (an x0 or x1 used is then in lo ..= hi, at
+                // least 0, so `as` floors).
+                let covers = |end: f64| x0 <= end && end <= x1;
+                match (covers(lo_f), covers(hi_f)) {
+                    (true, true) => None,
+                    (true, false) => Some((x1 as usize + 1, hi)),
+                    (false, true) => Some((lo, ceil(x0) - 1)),
+                    (false, false) => Some((lo, hi)),
+                }
+            }
+            Shape::Or(chords, area, extremes) => {
+                let inside = extremes
+                    .columns(chords, *area, ya, yb)
+                    .and_then(|(x0, x1)| {
+                        let (l, h) = (x0.max(lo as f64), x1.min(hi as f64));
+                        // l <= h: both lie in lo ..= hi, at least 0, so `as` floors.
+                        let (l, h) = (l <= h).then(|| (ceil(l), h as usize))?;
+                        (l <= h).then_some((l, h))
+                    });
+                match (half, inside) {
+                    (Some(a), Some(b)) => Some((a.0.min(b.0), a.1.max(b.1))),
+                    (a, b) => a.or(b),
+                }
             }
         }
-        plane[at..at + gpr].copy_from_slice(mask.as_ref());
+    }
+}
+
+/// The smallest integer at least `x`, for 0 <= x < 2^52 (`f64::ceil` is a library call on
+/// this target's baseline).
+#[inline(always)]
+fn ceil(x: f64) -> usize {
+    let t = x as usize;
+    t + usize::from((t as f64) < x)
+}
+
+/// An ellipse's chord on each row, in f64: constants of the row's discriminant
+/// `(a + e py)^2 - 4 d (c + b py + f py^2)` and of `a + e py`, from the ellipse's exact i128
+/// coefficients.
+struct Chords {
+    disc: [f64; 3],
+    disc_abs: [f64; 3],
+    centre: [f64; 2],
+    centre_abs: [f64; 2],
+    /// 1 / (2 |d|).
+    half: f64,
+}
+
+impl Chords {
+    /// `None` if the discriminant's coefficients overflow (`Concave::discriminant`).
+    fn of(e: Ellipse) -> Option<Chords> {
+        let [a, b, c, d, ee, f] = e.k;
+        let [k2, k1, k0] = Concave::discriminant(a, ee, d, b, f, c)?.k;
+        let disc = [k2, k1, k0].map(|k| k as f64);
+        let centre = [a, ee].map(|k| k as f64);
+        Some(Chords {
+            disc,
+            disc_abs: disc.map(f64::abs),
+            centre,
+            centre_abs: centre.map(f64::abs),
+            half: -0.5 / d as f64,
+        })
+    }
+
+    /// Row `y`'s chord, in columns: `outer`, an interval that surely holds every real point of
+    /// the row inside the ellipse (`None`: none is); else one whose every point surely is
+    /// inside (`None`: none surely is). The chord is `(B -+ sqrt(D)) / (2 |d|)`, B the row's
+    /// `a + e py` and D its discriminant. Each conversion and operation in f64 errs by at most
+    /// a relative 2^-53 of the magnitudes it adds, so D is within (|k2| y^2 + |k1| y + |k0|)
+    /// 2^-50 of the exact one and each end within (|a| + |e| y + sqrt(D)) 2^-50 / (2 |d|):
+    /// both are moved by far more (2^-49 and 2^-40). For skipping rows and columns, never for
+    /// deciding a pixel.
+    #[inline(always)]
+    fn at(&self, y: f64, outer: bool) -> Option<(f64, f64)> {
+        let ([k2, k1, k0], [m2, m1, m0]) = (self.disc, self.disc_abs);
+        let error = ((m2 * y + m1) * y + m0) * (1.0 / (1u64 << 49) as f64);
+        let disc = (k2 * y + k1) * y + k0 + if outer { error } else { -error };
+        if disc.is_nan() || disc < 0.0 {
+            return None;
+        }
+        let root = disc.sqrt();
+        let centre = self.centre[0] + self.centre[1] * y;
+        let magnitude = self.centre_abs[0] + self.centre_abs[1] * y + root;
+        let slack = magnitude * self.half * (1.0 / (1u64 << 40) as f64);
+        let (x0, x1) = ((centre - root) * self.half, (centre + root) * self.half);
+        Some(if outer {
+            (x0 - slack, x1 + slack)
+        } else {
+            (x0 + slack, x1 - slack)
+        })
+    }
+}
+
+/// The rows of an ellipse's leftmost and rightmost points, in f64, each with a margin that
+/// surely holds the exact row.
+struct Extremes {
+    left: f64,
+    right: f64,
+    margin: f64,
+}
+
+impl Extremes {
+    /// The extreme points are where the boundary's tangent is vertical, `dV/dy = e x + 2 f y +
+    /// b = 0`: at the roots x of the columns' discriminant `(b + e x)^2 - 4 f (c + a x + d
+    /// x^2)`, on rows `-(e x + b) / (2 f)`. `None` if a coefficient overflows.
+    fn of(e: Ellipse) -> Option<Extremes> {
+        let [a, b, c, d, ee, f] = e.k;
+        let [q2, q1, q0] = Concave::discriminant(b, ee, f, a, d, c)?
+            .k
+            .map(|k| k as f64);
+        let (b, ee, f) = (b as f64, ee as f64, f as f64);
+        // The roots (q1 -+ sqrt(D)) / (2 |q2|) (q2 < 0), D = q1^2 - 4 q2 q0. D's error, within
+        // (q1^2 + 4 |q2 q0|) 2^-50, moves sqrt(D) by at most its square root: the roots err by
+        // at most that and 2^-45 of their terms, over 2 |q2|.
+        let scale = q1 * q1 + 4.0 * (q2 * q0).abs();
+        let root = (q1 * q1 - 4.0 * q2 * q0).max(0.0).sqrt();
+        let over = -0.5 / q2;
+        let (x0, x1) = ((q1 - root) * over, (q1 + root) * over);
+        let x_error = (scale.sqrt() * (1.0 / (1u64 << 24) as f64)
+            + (q1.abs() + root) * (1.0 / (1u64 << 45) as f64))
+            * over;
+        let row = |x: f64| -(ee * x + b) / (2.0 * f);
+        let magnitude = ee.abs() * (x0.abs().max(x1.abs()) + x_error) + b.abs();
+        let margin =
+            (ee.abs() * x_error + magnitude * (1.0 / (1u64 << 45) as f64)) / (2.0 * f.abs());
+        let extremes = Extremes {
+            left: row(x0),
+            right: row(x1),
+            margin: margin + 1.0,
+        };
+        [extremes.left, extremes.right, extremes.margin]
+            .iter()
+            .all(|v| v.is_finite())
+            .then_some(extremes)
+    }
+
+    /// An interval of columns that holds every pixel inside the ellipse on rows `ya ..= yb`,
+    /// `None` if none is. The chords' left end is convex in the row, so over rows all on one
+    /// side of the leftmost point's it is least at the band's end nearest that point; else the
+    /// box's left column bounds it (likewise the right end, concave).
+    #[inline(always)]
+    fn columns(&self, chords: &Chords, area: Area, ya: usize, yb: usize) -> Option<(f64, f64)> {
+        let (ya, yb) = (ya.max(area.y0), yb.min(area.y1));
+        if ya > yb {
+            return None;
+        }
+        let (fa, fb) = (ya as f64, yb as f64);
+        let end = |y: f64| chords.at(y, true);
+        let x0 = if self.left + self.margin < fa {
+            end(fa).map(|c| c.0)
+        } else if self.left - self.margin > fb {
+            end(fb).map(|c| c.0)
+        } else {
+            None
+        };
+        let x1 = if self.right + self.margin < fa {
+            end(fa).map(|c| c.1)
+        } else if self.right - self.margin > fb {
+            end(fb).map(|c| c.1)
+        } else {
+            None
+        };
+        let (bx0, bx1) = (area.x0 as f64, area.x1 as f64);
+        Some((
+            x0.map_or(bx0, |x| x.max(bx0)),
+            x1.map_or(bx1, |x| x.min(bx1)),
+        ))
     }
 }
 
@@ -1331,6 +1648,93 @@ mod tests {
         }
         // The boxes narrow: of the 300 drawn, those definite and smaller than the board (77).
         assert!(boxed > 50, "{boxed} boxes narrower than the board");
+    }
+
+    /// A band's span (`BandBound::span`) holds every pixel of the band's columns where the
+    /// step may hold, for a half-plane or an ellipse (`Or`) and a half-plane less one
+    /// (`Less`), and is `None` only where there is none, for ellipses on, across and off the
+    /// board; and it narrows (it would pass if it never did, so that is counted).
+    #[test]
+    fn band_spans_hold_every_pixel_of_the_region() {
+        let mut r = 0x51_7cc1_b727_220au64;
+        let (w, h) = (128usize, 128usize);
+        let all = Area {
+            x0: 0,
+            x1: w - 1,
+            y0: 0,
+            y1: h - 1,
+        };
+        let (mut bands, mut narrowed, mut empty) = (0, 0, 0);
+        for _ in 0..300 {
+            let (ox, oy) = (draw(&mut r, 0, 300), draw(&mut r, 0, 300));
+            let (cx, cy) = (ox + draw(&mut r, -60, 190), oy + draw(&mut r, -60, 190));
+            let (kx, ky, e) = (
+                draw(&mut r, 1, 30),
+                draw(&mut r, 1, 30),
+                draw(&mut r, -50, 50),
+            );
+            let r2 = draw(&mut r, -100, 300_000);
+            let negated = draw(&mut r, 0, 1) == 1;
+            let q = QeeExpr::ellipse((cx, cy), (kx, e, ky), r2).raw();
+            let expr = QeeExpr::from_raw(if negated { q.map(|k| -k) } else { q });
+            let t = SignTerm {
+                streams: Streams::for_rows(&expr, (ox as u32, oy as u32)),
+                window: Window { shift: 0, bits: 64 },
+                range: Unwrapped::of(Window { shift: 0, bits: 64 }),
+                checks: false,
+            };
+            let Some(ellipse) = Ellipse::of(&t, negated) else {
+                continue;
+            };
+            let inside = |px: usize, py: usize| (t.streams.row_fn(py).at(px) >= 0) != negated;
+            // A half-plane through the board, either way up.
+            let (hx, hy) = (draw(&mut r, -9, 9), draw(&mut r, -9, 9));
+            let k0 = -(hx * draw(&mut r, 0, 127) + hy * draw(&mut r, 0, 127));
+            let half = [k0, hx, hy];
+            let in_half = |px: usize, py: usize| k0 + hx * px as i64 + hy * py as i64 >= 0;
+            let or = Bound::HalfOrBox(half, ellipse.box_in(all), ellipse);
+            let less = Bound::Half(half, false, Some(ellipse));
+            for (bound, holds) in [
+                (
+                    or,
+                    &(|px, py| in_half(px, py) || inside(px, py)) as &dyn Fn(usize, usize) -> bool,
+                ),
+                (less, &|px, py| in_half(px, py) && !inside(px, py)),
+            ] {
+                let Some(band) = BandBound::of(&bound) else {
+                    continue;
+                };
+                for _ in 0..20 {
+                    let ya = draw(&mut r, 0, 127) as usize;
+                    let yb = (ya + draw(&mut r, 0, 30) as usize).min(h - 1);
+                    let lo = draw(&mut r, 0, 127) as usize;
+                    let hi = (lo + draw(&mut r, 0, 127) as usize).min(w - 1);
+                    let cols: Vec<usize> = (lo..=hi)
+                        .filter(|&px| (ya..=yb).any(|py| holds(px, py)))
+                        .collect();
+                    let span = band.span(ya, yb, lo, hi);
+                    bands += 1;
+                    match (cols.first(), cols.last(), span) {
+                        (Some(&a), Some(&b), Some((l, h))) => {
+                            assert!(lo <= l && l <= a && b <= h && h <= hi, "{span:?} {a}..={b}");
+                            narrowed += usize::from((l, h) != (lo, hi));
+                        }
+                        (None, None, None) => empty += 1,
+                        (None, None, Some((l, h))) => {
+                            assert!(lo <= l && l <= h && h <= hi, "{span:?} in {lo}..={hi}");
+                        }
+                        (a, b, None) => panic!("none left, but {a:?}..={b:?} in the region"),
+                        _ => unreachable!(),
+                    }
+                }
+            }
+        }
+        assert!(bands > 5000, "{bands} bands");
+        assert!(narrowed > bands / 10, "{narrowed} of {bands} narrowed");
+        assert!(
+            empty > bands / 20,
+            "{empty} of {bands} found empty, {narrowed} narrowed"
+        );
     }
 
     #[test]
