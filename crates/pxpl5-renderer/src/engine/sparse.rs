@@ -95,6 +95,8 @@ struct Epoch {
     base: Vec<u64>,
     /// The smallest area holding the base's set pixels (`bounding_area`).
     area: Option<Area>,
+    /// Equal for two epochs exactly when their bases were found equal (`new_epoch`).
+    base_id: u64,
     signs: Vec<SignTerm>,
     conj: Vec<Value>,
     /// Layers and the enable that refer to this epoch.
@@ -129,8 +131,8 @@ pub struct SparseEngine {
     free: Vec<u32>,
     /// Set when enable was materialised: the board's list of enabled groups is then stale.
     enable_materialised: bool,
-    /// The base of the epoch started last, and its area.
-    last_base: (Vec<u64>, Option<Area>),
+    /// The base of the epoch started last, its area and its `base_id`.
+    last_base: (Vec<u64>, Option<Area>, u64),
 }
 
 impl SparseEngine {
@@ -143,7 +145,7 @@ impl SparseEngine {
             epochs: Vec::new(),
             free: Vec::new(),
             enable_materialised: false,
-            last_base: (Vec::new(), None),
+            last_base: (Vec::new(), None, 0),
         }
     }
 
@@ -342,7 +344,8 @@ impl SparseEngine {
                 match checked {
                     Some((c, covered)) if c == top.epoch => covered,
                     _ => {
-                        let covered = holds(&self.epoch(e).base, &self.epoch(top.epoch).base);
+                        let (new, old) = (self.epoch(e), self.epoch(top.epoch));
+                        let covered = new.base_id == old.base_id || holds(&new.base, &old.base);
                         checked = Some((top.epoch, covered));
                         covered
                     }
@@ -378,6 +381,7 @@ impl SparseEngine {
                 self.epochs.push(Epoch {
                     base: Vec::new(),
                     area: None,
+                    base_id: 0,
                     signs: Vec::new(),
                     conj: Vec::new(),
                     refs: 0,
@@ -394,13 +398,16 @@ impl SparseEngine {
         }
         // A chain most often starts from the plane the last one did (a view's disk, once a
         // receiver): its area is then the last one's, found by a comparison rather than a scan
-        // of the plane (the scan was 4 % of `bench renderer`'s hemisphere stream).
-        let (plane, area) = &mut self.last_base;
+        // of the plane (the scan was 4 % of `bench renderer`'s hemisphere stream), and a layer
+        // of one over a layer of the other compares ids, not planes (`push_layer`).
+        let (plane, area, id) = &mut self.last_base;
         if ep.base != *plane {
             plane.clone_from(&ep.base);
             *area = bounding_area(plane, self.geometry);
+            *id += 1;
         }
         ep.area = *area;
+        ep.base_id = *id;
         ep.signs.clear();
         ep.conj.clear();
         ep.refs = 1;
