@@ -1356,21 +1356,20 @@ impl Extremes {
             return None;
         }
         let (fa, fb) = (ya as f64, yb as f64);
-        let end = |y: f64| chords.at(y, true);
-        let x0 = if self.left + self.margin < fa {
-            end(fa).map(|c| c.0)
-        } else if self.left - self.margin > fb {
-            end(fb).map(|c| c.0)
-        } else {
-            None
+        // The chord at the band's end nearest the extreme point's row, if every row of the
+        // band is on one side of it.
+        let nearest = |row: f64| {
+            let y = if row + self.margin < fa {
+                fa
+            } else if row - self.margin > fb {
+                fb
+            } else {
+                return None;
+            };
+            chords.at(y, true)
         };
-        let x1 = if self.right + self.margin < fa {
-            end(fa).map(|c| c.1)
-        } else if self.right - self.margin > fb {
-            end(fb).map(|c| c.1)
-        } else {
-            None
-        };
+        let x0 = nearest(self.left).map(|c| c.0);
+        let x1 = nearest(self.right).map(|c| c.1);
         let (bx0, bx1) = (area.x0 as f64, area.x1 as f64);
         Some((
             x0.map_or(bx0, |x| x.max(bx0)),
@@ -1575,6 +1574,35 @@ mod tests {
         lo + (*state % (hi - lo + 1) as u64) as i64
     }
 
+    /// A sign test whose region (where it is 1, or 0 when `negated`) is an ellipse's inside at a
+    /// random origin, on, across or off a 128 x 128 board; and whether its form is definite.
+    fn random_ellipse(r: &mut u64) -> (SignTerm, bool, bool) {
+        let (ox, oy) = (draw(r, 0, 300), draw(r, 0, 300));
+        let (cx, cy) = (ox + draw(r, -60, 190), oy + draw(r, -60, 190));
+        let (kx, ky, e) = (draw(r, 1, 30), draw(r, 1, 30), draw(r, -50, 50));
+        let r2 = draw(r, -100, 300_000);
+        let negated = draw(r, 0, 1) == 1;
+        let q = QeeExpr::ellipse((cx, cy), (kx, e, ky), r2).raw();
+        let expr = QeeExpr::from_raw(if negated { q.map(|k| -k) } else { q });
+        let t = SignTerm {
+            streams: Streams::for_rows(&expr, (ox as u32, oy as u32)),
+            window: Window { shift: 0, bits: 64 },
+            range: Unwrapped::of(Window { shift: 0, bits: 64 }),
+            checks: false,
+        };
+        (t, negated, 4 * kx * ky > e * e)
+    }
+
+    /// Every pixel of a w x h board.
+    fn board(w: usize, h: usize) -> Area {
+        Area {
+            x0: 0,
+            x1: w - 1,
+            y0: 0,
+            y1: h - 1,
+        }
+    }
+
     /// `Concave::at_least_zero` gives the first and last t at which the quadratic is at least 0,
     /// as a scan of every t does, for peaks inside, before and after the range, and none.
     #[test]
@@ -1608,33 +1636,12 @@ mod tests {
     fn ellipse_boxes_hold_every_pixel_inside() {
         let mut r = 0x9e37_79b9_7f4a_7c15u64;
         let (w, h) = (128usize, 128usize);
-        let all = Area {
-            x0: 0,
-            x1: w - 1,
-            y0: 0,
-            y1: h - 1,
-        };
+        let all = board(w, h);
         let mut boxed = 0;
         for _ in 0..300 {
-            let (ox, oy) = (draw(&mut r, 0, 300), draw(&mut r, 0, 300));
-            let (cx, cy) = (ox + draw(&mut r, -60, 190), oy + draw(&mut r, -60, 190));
-            let (kx, ky, e) = (
-                draw(&mut r, 1, 30),
-                draw(&mut r, 1, 30),
-                draw(&mut r, -50, 50),
-            );
-            let r2 = draw(&mut r, -100, 300_000);
-            let negated = draw(&mut r, 0, 1) == 1;
-            let q = QeeExpr::ellipse((cx, cy), (kx, e, ky), r2).raw();
-            let expr = QeeExpr::from_raw(if negated { q.map(|k| -k) } else { q });
-            let t = SignTerm {
-                streams: Streams::for_rows(&expr, (ox as u32, oy as u32)),
-                window: Window { shift: 0, bits: 64 },
-                range: Unwrapped::of(Window { shift: 0, bits: 64 }),
-                checks: false,
-            };
+            let (t, negated, definite) = random_ellipse(&mut r);
             let Some(ellipse) = Ellipse::of(&t, negated) else {
-                assert!(4 * kx * ky <= e * e, "a definite form was refused");
+                assert!(!definite, "a definite form was refused");
                 continue;
             };
             let b = ellipse.box_in(all);
@@ -1665,31 +1672,10 @@ mod tests {
     fn band_spans_hold_every_pixel_of_the_region() {
         let mut r = 0x51_7cc1_b727_220au64;
         let (w, h) = (128usize, 128usize);
-        let all = Area {
-            x0: 0,
-            x1: w - 1,
-            y0: 0,
-            y1: h - 1,
-        };
+        let all = board(w, h);
         let (mut bands, mut narrowed, mut empty) = (0, 0, 0);
         for _ in 0..300 {
-            let (ox, oy) = (draw(&mut r, 0, 300), draw(&mut r, 0, 300));
-            let (cx, cy) = (ox + draw(&mut r, -60, 190), oy + draw(&mut r, -60, 190));
-            let (kx, ky, e) = (
-                draw(&mut r, 1, 30),
-                draw(&mut r, 1, 30),
-                draw(&mut r, -50, 50),
-            );
-            let r2 = draw(&mut r, -100, 300_000);
-            let negated = draw(&mut r, 0, 1) == 1;
-            let q = QeeExpr::ellipse((cx, cy), (kx, e, ky), r2).raw();
-            let expr = QeeExpr::from_raw(if negated { q.map(|k| -k) } else { q });
-            let t = SignTerm {
-                streams: Streams::for_rows(&expr, (ox as u32, oy as u32)),
-                window: Window { shift: 0, bits: 64 },
-                range: Unwrapped::of(Window { shift: 0, bits: 64 }),
-                checks: false,
-            };
+            let (t, negated, _) = random_ellipse(&mut r);
             let Some(ellipse) = Ellipse::of(&t, negated) else {
                 continue;
             };
