@@ -740,12 +740,18 @@ impl Step {
     /// it (`narrow`) are sums of the terms `QeeExpr::bound` adds for the board, which the
     /// window's unwrapped range holds.
     fn half_plane(&self, signs: &[SignTerm]) -> Option<[i64; 3]> {
-        let positive = self.depends.0 == 0 && !eval(self.op, false, true);
+        let positive = self.false_where_first_is_0();
         let negative = self.depends.1 == 0 && !eval(self.op, true, true);
         if !(positive || negative) {
             return None;
         }
         side(&signs[self.first as usize], positive)
+    }
+
+    /// Whether the step is false wherever its first test is 0: its half-plane is then where the
+    /// first test is 1 (`half_plane`).
+    fn false_where_first_is_0(&self) -> bool {
+        self.depends.0 == 0 && !eval(self.op, false, true)
     }
 
     /// The region outside which this step is false: its half-plane, or else, where the first
@@ -760,7 +766,7 @@ impl Step {
             // Inside the half-plane, where the first test is p1, the step is false where the
             // second is q0 (`op(p1, q0)` = 0): a hemisphere receiver's edge whose side does not
             // hold the zenith (`pos AND outside`) is false inside its ellipse.
-            let p1 = self.depends.0 == 0 && !eval(self.op, false, true);
+            let p1 = self.false_where_first_is_0();
             let second = &signs[self.second as usize];
             let cut = [false, true]
                 .into_iter()
