@@ -50,7 +50,6 @@ use super::integer::{Hints, IntegerEngine, Unwrapped, may_wrap, sign_row};
 use super::{Geometry, PixelEngine, QeeSink, Registers, gated};
 use crate::command::{Anf, Bit, Cmp, Command, Field, LogicOp, Rect};
 use crate::qee::{Streams, Window};
-use smallvec::SmallVec;
 
 /// Most layers one flag holds before it is materialised, and most epochs alive before every flag
 /// is: bounds on host memory for streams whose layers are never overwritten (each epoch keeps a
@@ -134,6 +133,20 @@ pub struct SparseEngine {
     enable_materialised: bool,
     /// The base of the epoch started last, its area and its `base_id`.
     last_base: (Vec<u64>, Option<Area>, u64),
+    /// `chain_plane`'s lists, kept from one receiver to the next.
+    scratch: Scratch,
+}
+
+/// The lists `chain_plane` builds for each chain, reused: a receiver's steps, their bounds, its
+/// half-planes, its band bounds and its rows' spans. Fresh lists per receiver (a `Vec` or a
+/// `SmallVec` each) cost about 1.5 K instructions a hemicube receiver.
+#[derive(Default)]
+struct Scratch {
+    steps: Vec<Step>,
+    bounds: Vec<Bound>,
+    half_planes: Vec<[i64; 3]>,
+    bands: Vec<BandBound>,
+    spans: Vec<(i64, i64)>,
 }
 
 impl SparseEngine {
@@ -147,6 +160,7 @@ impl SparseEngine {
             free: Vec::new(),
             enable_materialised: false,
             last_base: (Vec::new(), None, 0),
+            scratch: Scratch::default(),
         }
     }
 
@@ -462,7 +476,9 @@ impl SparseEngine {
         // The old plane's buffer takes the new one (a fresh zeroed plane per receiver was 2.2 %
         // of the main job's instructions, in calloc and free).
         let mut plane = std::mem::take(&mut self.inner.registers_mut().enable);
-        self.chain_plane(e, &mut plane);
+        let mut scratch = std::mem::take(&mut self.scratch);
+        self.chain_plane(e, &mut plane, &mut scratch);
+        self.scratch = scratch;
         self.inner.registers_mut().enable = plane;
         self.release(e);
         self.enable_materialised = true;
@@ -486,7 +502,7 @@ impl SparseEngine {
             enable: match self.enable {
                 Some(e) => {
                     let mut plane = vec![0; regs.enable.len()];
-                    self.chain_plane(e, &mut plane);
+                    self.chain_plane(e, &mut plane, &mut Scratch::default());
                     plane
                 }
                 None => regs.enable.clone(),
@@ -500,27 +516,34 @@ impl SparseEngine {
     /// test solved only on the span of pixels still enabled, until the row is empty (the
     /// conjunct that emptied the last row first: neighbouring rows tend to die at the same one,
     /// though a row beside a polygon's vertex takes the two edges that meet there).
-    /// Into `plane`, a buffer of a plane's length whose contents are overwritten.
-    fn chain_plane(&self, e: u32, plane: &mut [u64]) {
+    /// Into `plane`, a buffer of a plane's length whose contents are overwritten; `scratch`'s
+    /// lists are overwritten too.
+    fn chain_plane(&self, e: u32, plane: &mut [u64], scratch: &mut Scratch) {
         let ep = self.epoch(e);
         if ep.conj.is_empty() {
             plane.copy_from_slice(&ep.base);
             return;
         }
         let g = self.geometry;
-        // A receiver's edges, on the stack (a `Vec` each here was 3 allocations a receiver).
-        let Some(mut steps) = ep
-            .conj
-            .iter()
-            .map(|&v| Step::of(v, &ep.signs))
-            .collect::<Option<SmallVec<[Step; 8]>>>()
-        else {
-            // A conjunct false everywhere.
-            plane.fill(0);
-            return;
-        };
-        // Conjuncts true everywhere need no row.
-        steps.retain(|s| s.op != LogicOp::ONE);
+        let Scratch {
+            steps,
+            bounds,
+            half_planes,
+            bands,
+            spans,
+        } = scratch;
+        steps.clear();
+        for &v in &ep.conj {
+            let Some(step) = Step::of(v, &ep.signs) else {
+                // A conjunct false everywhere.
+                plane.fill(0);
+                return;
+            };
+            // Conjuncts true everywhere need no row.
+            if step.op != LogicOp::ONE {
+                steps.push(step);
+            }
+        }
         let Some(area) = ep.area else {
             plane.fill(0);
             return;
@@ -530,13 +553,11 @@ impl SparseEngine {
         // the zenith): narrowing the area by each in turn, twice over, brings it near the
         // polygon's box. The ellipses took the hemisphere stream's rows solved from 84 to 58 a
         // receiver (8 of them with pixels left) and its instructions from 76.4 M to 64.9 M.
-        let bounds: SmallVec<[Bound; 8]> = steps
-            .iter()
-            .filter_map(|s| s.bound(&ep.signs, area))
-            .collect();
+        bounds.clear();
+        bounds.extend(steps.iter().filter_map(|s| s.bound(&ep.signs, area)));
         let Some(area) = bounds
             .iter()
-            .chain(&bounds)
+            .chain(bounds.iter())
             .try_fold(area, |area, b| b.narrow(area))
         else {
             plane.fill(0);
@@ -551,13 +572,10 @@ impl SparseEngine {
             Bound::Half(h, true, _) => Some(h),
             _ => None,
         };
-        if bounds.len() == steps.len()
-            && let Some(hs) = bounds
-                .iter()
-                .map(exact)
-                .collect::<Option<SmallVec<[_; 8]>>>()
-        {
-            return half_plane_rows(&ep.base, &hs, area, plane, gpr);
+        if bounds.len() == steps.len() && bounds.iter().all(|b| exact(b).is_some()) {
+            half_planes.clear();
+            half_planes.extend(bounds.iter().filter_map(exact));
+            return half_plane_rows(&ep.base, half_planes, area, (plane, gpr), spans);
         }
         // The seed's 128-pixel row is two groups: buffers whose length the compiler knows are
         // cleared by two stores where a slice's `fill` is a `memset` call.
@@ -565,10 +583,10 @@ impl SparseEngine {
         let ellipses = bounds
             .iter()
             .any(|b| matches!(b, Bound::Half(_, _, Some(_)) | Bound::HalfOrBox(..)));
-        let bands: SmallVec<[BandBound; 8]> = match ellipses {
-            true => bounds.iter().filter_map(BandBound::of).collect(),
-            false => SmallVec::new(),
-        };
+        bands.clear();
+        if ellipses {
+            bands.extend(bounds.iter().filter_map(BandBound::of));
+        }
         let steps = (&steps[..], &bands[..]);
         match g.groups_per_row {
             2 => and_rows(ep, steps, area, plane, Rows::new(ep, g, [0u64; 2])),
@@ -1029,13 +1047,13 @@ fn half_plane_rows(
     base: &[u64],
     half_planes: &[[i64; 3]],
     area: Area,
-    plane: &mut [u64],
-    gpr: usize,
+    (plane, gpr): (&mut [u64], usize),
+    spans: &mut Vec<(i64, i64)>,
 ) {
     // Each row's span, narrowed by one half-plane at a time over every row: a tight loop per
     // half-plane, where a loop over the half-planes for each row paid its set-up per row.
-    let mut spans: SmallVec<[(i64, i64); 64]> =
-        smallvec::smallvec![(area.x0 as i64, area.x1 as i64); area.y1 - area.y0 + 1];
+    spans.clear();
+    spans.resize(area.y1 - area.y0 + 1, (area.x0 as i64, area.x1 as i64));
     for &[k0, kx, ky] in half_planes {
         match kx.signum() {
             1 => {
@@ -1062,7 +1080,7 @@ fn half_plane_rows(
             }
         }
     }
-    for (py, &(lo, hi)) in (area.y0..).zip(&spans) {
+    for (py, &(lo, hi)) in (area.y0..).zip(spans.iter()) {
         let at = py * gpr;
         let row = &mut plane[at..at + gpr];
         // The seed's two-group row by two stores, not a `memset` call a row.
@@ -1720,7 +1738,7 @@ mod tests {
                 y1: draw(&mut r, y0 as i64, h as i64 - 1) as usize,
             };
             let mut plane = vec![u64::MAX; gpr * h];
-            half_plane_rows(&base, &planes, area, &mut plane, gpr);
+            half_plane_rows(&base, &planes, area, (&mut plane, gpr), &mut Vec::new());
             for py in area.y0..=area.y1 {
                 for px in 0..w {
                     let inside = (area.x0..=area.x1).contains(&px)
