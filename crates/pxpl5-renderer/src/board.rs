@@ -489,7 +489,9 @@ impl Board {
     fn validate(&self, cmd: &Command) -> Result<(), CommandError> {
         let kind = cmd.kind();
         let memory = self.cfg.pixel_memory_bits;
-        for f in cmd.fields() {
+        // The command's fields, listed once for both checks.
+        let fields = cmd.fields();
+        for &f in fields.iter() {
             if !(1..=64).contains(&f.bits) {
                 return Err(CommandError::FieldWidth { kind, bits: f.bits });
             }
@@ -502,7 +504,6 @@ impl Board {
                 });
             }
         }
-        let fields = cmd.fields();
         for (i, a) in fields.iter().enumerate() {
             for b in &fields[i + 1..] {
                 let forbidden = match cmd {
