@@ -452,6 +452,54 @@ fn for_each_run(mut m: u64, mut f: impl FnMut(usize, usize)) {
     }
 }
 
+/// V at pixel i of the group starting at pixel `px0` of a row where V is linear (d = 0: a
+/// hemicube's depth, 1/z across a plane), as the group's first value plus i steps: one
+/// multiply-add a pixel where `RowFn::at` takes two. In wrapping arithmetic, so equal to
+/// `at`'s value modulo 2^64 and the same in every bit a window cuts.
+#[inline(always)]
+fn linear_in_group(v: RowFn, px0: usize) -> Option<impl Fn(u32) -> i64> {
+    (v.d == 0).then(|| {
+        let first =
+            v.b.wrapping_mul(v.x0.wrapping_add(px0 as i64))
+                .wrapping_add(v.r);
+        move |i: u32| first.wrapping_add(v.b.wrapping_mul(i64::from(i)))
+    })
+}
+
+/// A QEE store of window `w` of V (`at(i)` at pixel i) into a field inside one limb, at the
+/// enabled pixels of one group's 64 words: the group as one slice indexed below 64, so no pixel
+/// pays for bounds checks or the straddle test (they were about a third of a hemicube's depth
+/// stores and compares), and the window's bits that the field keeps under one mask.
+#[inline(always)]
+fn store_group(words: &mut [u64], en: u64, (a, w): (Access, Window), at: impl Fn(u32) -> i64) {
+    let (clear, keep) = (!(a.mask << a.shift), mask(w.bits) & a.mask);
+    for_each_bit(en, |i| {
+        let word = &mut words[i as usize & 63];
+        let value = (at(i) >> w.shift) as u64 & keep;
+        *word = (*word & clear) | (value << a.shift);
+    });
+}
+
+/// A QEE compare of window `w` of V (`at(i)` at pixel i) with a field inside one limb, at the
+/// `need` pixels of one group: lhs < rhs and lhs == rhs per pixel, each side as a key whose
+/// order is its value's (`s`: 64 less a signed field's bits, 0 for an unsigned one).
+#[inline(always)]
+fn compare_group(
+    words: &[u64],
+    need: u64,
+    (a, w, s): (Access, Window, u32),
+    at: impl Fn(u32) -> i64,
+) -> (u64, u64) {
+    let (mut lt, mut eq) = (0u64, 0u64);
+    for_each_bit(need, |i| {
+        let lhs = (w.cut(at(i)) << s) as i64;
+        let rhs = (((words[i as usize & 63] >> a.shift) & a.mask) << s) as i64;
+        lt |= u64::from(lhs < rhs) << i;
+        eq |= u64::from(lhs == rhs) << i;
+    });
+    (lt, eq)
+}
+
 /// Call `f` with the index of every set bit of `m`, lowest first.
 #[inline]
 fn for_each_bit(mut m: u64, mut f: impl FnMut(u32)) {
@@ -509,14 +557,11 @@ impl PixelEngine for IntegerEngine {
                     // tried for stores and compares and took more instructions (4.127 G against
                     // 4.112 G for 150 hemicube shots): a group's enabled pixels are mostly one
                     // run already, and V's two multiplications are two instructions.
-                    // The window's bits that the field keeps, under one mask.
-                    let (clear, keep) = (!(a.mask << a.shift), mask(window.bits) & a.mask);
                     let words = &mut self.limbs[a.limb][base..base + 64];
-                    for_each_bit(en, |i| {
-                        let w = &mut words[i as usize & 63];
-                        let value = (v.at(px0 + i as usize) >> window.shift) as u64 & keep;
-                        *w = (*w & clear) | (value << a.shift);
-                    });
+                    match linear_in_group(v, px0) {
+                        Some(at) => store_group(words, en, (a, window), at),
+                        None => store_group(words, en, (a, window), |i| v.at(px0 + i as usize)),
+                    }
                 }
                 QeeSink::Add { dst } => {
                     let a = Access::of(dst);
@@ -557,13 +602,12 @@ impl PixelEngine for IntegerEngine {
                             // stream's 32.6 M instructions.
                             let s = if field.signed { 64 - field.bits } else { 0 };
                             let words = &self.limbs[a.limb][base..base + 64];
-                            for_each_bit(need, |i| {
-                                let lhs = (cut(i) << s) as i64;
-                                let rhs =
-                                    (((words[i as usize & 63] >> a.shift) & a.mask) << s) as i64;
-                                lt |= u64::from(lhs < rhs) << i;
-                                eq |= u64::from(lhs == rhs) << i;
-                            });
+                            (lt, eq) = match linear_in_group(v, px0) {
+                                Some(at) => compare_group(words, need, (a, window, s), at),
+                                None => compare_group(words, need, (a, window, s), |i| {
+                                    v.at(px0 + i as usize)
+                                }),
+                            };
                         }
                         cmp.from_lt_eq(lt, eq) & need
                     } else {
