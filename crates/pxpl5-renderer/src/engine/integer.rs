@@ -4,6 +4,11 @@
 //! A pixel's memory is one integer of `memory_bits` bits, stored as 64-bit limbs: limb k holds
 //! bits 64k .. 64k + 63 of every pixel (structure of arrays, so a field's loop walks one or two
 //! contiguous vectors).
+//!
+//! The per-group loops of QEE stores, adds and compares and of constant writes are compiled
+//! twice, for x86-64-v3 (AVX2, BMI1/2) and portably, and [`pulp`] picks the build the CPU can run
+//! when the engine is made, as the `bit` level's QEE loops are; a test holds both to the same
+//! values.
 
 use super::{Geometry, PixelEngine, QeeSink, Registers, extend, gated, value_of};
 use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
@@ -16,6 +21,10 @@ pub struct IntegerEngine {
     regs: Registers,
     /// Scratch: one row's sign bits (host work only).
     row_bits: Vec<u64>,
+    /// The host instructions the per-pixel loops of QEE stores, compares and adds and of
+    /// constant writes run with: x86-64-v3 (AVX2, and BMI1/2's one-instruction bit scans) where
+    /// the CPU has it, found once, else the portable build. Both give the same values.
+    arch: pulp::Arch,
 }
 
 /// Where a field's bits sit in the limbs.
@@ -51,7 +60,16 @@ impl IntegerEngine {
             limbs: vec![vec![0; geometry.groups * 64]; limbs],
             regs: Registers::new(geometry, flag_count),
             row_bits: vec![0; geometry.groups_per_row],
+            arch: pulp::Arch::new(),
         }
+    }
+
+    /// This engine with its loops in the portable build whatever the host has: what the tests
+    /// compare the dispatched build with.
+    #[cfg(test)]
+    pub(crate) fn portable(mut self) -> IntegerEngine {
+        self.arch = pulp::Arch::Scalar;
+        self
     }
 
     #[inline]
@@ -452,87 +470,11 @@ fn for_each_run(mut m: u64, mut f: impl FnMut(usize, usize)) {
     }
 }
 
-/// V at pixel i of the group starting at pixel `px0` of a row where V is linear (d = 0: a
-/// hemicube's depth, 1/z across a plane), as the group's first value plus i steps: one
-/// multiply-add a pixel where `RowFn::at` takes two. In wrapping arithmetic, so equal to
-/// `at`'s value modulo 2^64 and the same in every bit a window cuts.
-#[inline(always)]
-fn linear_in_group(v: RowFn, px0: usize) -> Option<impl Fn(u32) -> i64> {
-    (v.d == 0).then(|| {
-        let first =
-            v.b.wrapping_mul(v.x0.wrapping_add(px0 as i64))
-                .wrapping_add(v.r);
-        move |i: u32| first.wrapping_add(v.b.wrapping_mul(i64::from(i)))
-    })
-}
-
-/// A QEE store of window `w` of V (`at(i)` at pixel i) into a field inside one limb, at the
-/// enabled pixels of one group's 64 words: the group as one slice indexed below 64, so no pixel
-/// pays for bounds checks or the straddle test (they were about a third of a hemicube's depth
-/// stores and compares), and the window's bits that the field keeps under one mask.
-#[inline(always)]
-fn store_group(words: &mut [u64], en: u64, (a, w): (Access, Window), at: impl Fn(u32) -> i64) {
-    let (clear, keep) = (!(a.mask << a.shift), mask(w.bits) & a.mask);
-    for_each_bit(en, |i| {
-        let word = &mut words[i as usize & 63];
-        let value = (at(i) >> w.shift) as u64 & keep;
-        *word = (*word & clear) | (value << a.shift);
-    });
-}
-
-/// A QEE compare of window `w` of V (`at(i)` at pixel i) with a field inside one limb, at the
-/// `need` pixels of one group: lhs < rhs and lhs == rhs per pixel, each side as a key whose
-/// order is its value's (`s`: 64 less a signed field's bits, 0 for an unsigned one).
-#[inline(always)]
-fn compare_group(
-    words: &[u64],
-    need: u64,
-    (a, w, s): (Access, Window, u32),
-    at: impl Fn(u32) -> i64,
-) -> (u64, u64) {
-    let (mut lt, mut eq) = (0u64, 0u64);
-    for_each_bit(need, |i| {
-        let lhs = (w.cut(at(i)) << s) as i64;
-        let rhs = (((words[i as usize & 63] >> a.shift) & a.mask) << s) as i64;
-        lt |= u64::from(lhs < rhs) << i;
-        eq |= u64::from(lhs == rhs) << i;
-    });
-    (lt, eq)
-}
-
-/// Call `f` with the index of every set bit of `m`, lowest first.
-#[inline]
-fn for_each_bit(mut m: u64, mut f: impl FnMut(u32)) {
-    while m != 0 {
-        f(m.trailing_zeros());
-        m &= m - 1;
-    }
-}
-
-/// The pixels of a group whose result bit can matter when it is combined into `dst` with
-/// `combine`: the enabled ones for a flag (its writes are gated) or for enable combined by an op
-/// that keeps 0 at 0; all of them otherwise. Result bits elsewhere are left 0.
-#[inline]
-fn needed(dst: Bit, combine: LogicOp, en: u64) -> u64 {
-    match dst {
-        Bit::Enable if !combine.keeps_zero() => u64::MAX,
-        _ => en,
-    }
-}
-
-impl PixelEngine for IntegerEngine {
-    fn registers(&self) -> &Registers {
-        &self.regs
-    }
-
-    fn registers_mut(&mut self) -> &mut Registers {
-        &mut self.regs
-    }
-
-    fn qee(&mut self, s: &Streams, window: Window, sink: QeeSink, active: &[u32]) {
-        if let QeeSink::Sign { dst, combine } = sink {
-            return self.sign_test(s, window, dst, combine, active);
-        }
+impl IntegerEngine {
+    /// A QEE store, add or compare on the active groups (`PixelEngine::qee` less sign tests),
+    /// inlined into each build `Groups` dispatches.
+    #[inline(always)]
+    fn qee_groups(&mut self, s: &Streams, window: Window, sink: QeeSink, active: &[u32]) {
         let gpr = self.geometry.groups_per_row;
         for &g in active {
             let g = g as usize;
@@ -626,7 +568,9 @@ impl PixelEngine for IntegerEngine {
         }
     }
 
-    fn write_const(&mut self, dst: Field, value: u64, active: &[u32]) {
+    /// `PixelEngine::write_const`, inlined into each build `Groups` dispatches.
+    #[inline(always)]
+    fn write_const_groups(&mut self, dst: Field, value: u64, active: &[u32]) {
         let a = Access::of(dst);
         if a.straddles() {
             return self.update(dst, active, |_, _| value);
@@ -646,6 +590,142 @@ impl PixelEngine for IntegerEngine {
                 }
             });
         }
+    }
+}
+
+/// Per-group work whose loops are compiled once per instruction set [`pulp::Arch::dispatch`]
+/// can choose: everything the loops call is inlined into each build.
+struct Groups<'a> {
+    engine: &'a mut IntegerEngine,
+    active: &'a [u32],
+    work: Work<'a>,
+}
+
+enum Work<'a> {
+    Qee {
+        s: &'a Streams,
+        window: Window,
+        sink: QeeSink,
+    },
+    Const {
+        dst: Field,
+        value: u64,
+    },
+}
+
+impl pulp::WithSimd for Groups<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) {
+        let Groups {
+            engine,
+            active,
+            work,
+        } = self;
+        match work {
+            Work::Qee { s, window, sink } => engine.qee_groups(s, window, sink, active),
+            Work::Const { dst, value } => engine.write_const_groups(dst, value, active),
+        }
+    }
+}
+
+/// V at pixel i of the group starting at pixel `px0` of a row where V is linear (d = 0: a
+/// hemicube's depth, 1/z across a plane), as the group's first value plus i steps: one
+/// multiply-add a pixel where `RowFn::at` takes two. In wrapping arithmetic, so equal to
+/// `at`'s value modulo 2^64 and the same in every bit a window cuts.
+#[inline(always)]
+fn linear_in_group(v: RowFn, px0: usize) -> Option<impl Fn(u32) -> i64> {
+    (v.d == 0).then(|| {
+        let first =
+            v.b.wrapping_mul(v.x0.wrapping_add(px0 as i64))
+                .wrapping_add(v.r);
+        move |i: u32| first.wrapping_add(v.b.wrapping_mul(i64::from(i)))
+    })
+}
+
+/// A QEE store of window `w` of V (`at(i)` at pixel i) into a field inside one limb, at the
+/// enabled pixels of one group's 64 words: the group as one slice indexed below 64, so no pixel
+/// pays for bounds checks or the straddle test (they were about a third of a hemicube's depth
+/// stores and compares), and the window's bits that the field keeps under one mask.
+#[inline(always)]
+fn store_group(words: &mut [u64], en: u64, (a, w): (Access, Window), at: impl Fn(u32) -> i64) {
+    let (clear, keep) = (!(a.mask << a.shift), mask(w.bits) & a.mask);
+    for_each_bit(en, |i| {
+        let word = &mut words[i as usize & 63];
+        let value = (at(i) >> w.shift) as u64 & keep;
+        *word = (*word & clear) | (value << a.shift);
+    });
+}
+
+/// A QEE compare of window `w` of V (`at(i)` at pixel i) with a field inside one limb, at the
+/// `need` pixels of one group: lhs < rhs and lhs == rhs per pixel, each side as a key whose
+/// order is its value's (`s`: 64 less a signed field's bits, 0 for an unsigned one).
+#[inline(always)]
+fn compare_group(
+    words: &[u64],
+    need: u64,
+    (a, w, s): (Access, Window, u32),
+    at: impl Fn(u32) -> i64,
+) -> (u64, u64) {
+    let (mut lt, mut eq) = (0u64, 0u64);
+    for_each_bit(need, |i| {
+        let lhs = (w.cut(at(i)) << s) as i64;
+        let rhs = (((words[i as usize & 63] >> a.shift) & a.mask) << s) as i64;
+        lt |= u64::from(lhs < rhs) << i;
+        eq |= u64::from(lhs == rhs) << i;
+    });
+    (lt, eq)
+}
+
+/// Call `f` with the index of every set bit of `m`, lowest first.
+#[inline]
+fn for_each_bit(mut m: u64, mut f: impl FnMut(u32)) {
+    while m != 0 {
+        f(m.trailing_zeros());
+        m &= m - 1;
+    }
+}
+
+/// The pixels of a group whose result bit can matter when it is combined into `dst` with
+/// `combine`: the enabled ones for a flag (its writes are gated) or for enable combined by an op
+/// that keeps 0 at 0; all of them otherwise. Result bits elsewhere are left 0.
+#[inline]
+fn needed(dst: Bit, combine: LogicOp, en: u64) -> u64 {
+    match dst {
+        Bit::Enable if !combine.keeps_zero() => u64::MAX,
+        _ => en,
+    }
+}
+
+impl PixelEngine for IntegerEngine {
+    fn registers(&self) -> &Registers {
+        &self.regs
+    }
+
+    fn registers_mut(&mut self) -> &mut Registers {
+        &mut self.regs
+    }
+
+    fn qee(&mut self, s: &Streams, window: Window, sink: QeeSink, active: &[u32]) {
+        if let QeeSink::Sign { dst, combine } = sink {
+            return self.sign_test(s, window, dst, combine, active);
+        }
+        let arch = self.arch;
+        arch.dispatch(Groups {
+            engine: self,
+            active,
+            work: Work::Qee { s, window, sink },
+        })
+    }
+
+    fn write_const(&mut self, dst: Field, value: u64, active: &[u32]) {
+        let arch = self.arch;
+        arch.dispatch(Groups {
+            engine: self,
+            active,
+            work: Work::Const { dst, value },
+        })
     }
 
     fn copy(&mut self, dst: Field, src: Field, active: &[u32]) {
@@ -762,6 +842,106 @@ impl PixelEngine for IntegerEngine {
 #[cfg(test)]
 mod tests {
     use super::{for_each_run, split};
+
+    /// The x86-64-v3 build (where this host has it) and the portable build of the per-group
+    /// loops leave the same pixel memory and registers after QEE stores, adds and compares and
+    /// constant writes: linear rows and quadratic ones, fields inside one limb and across two,
+    /// signed and unsigned, on rows of one, two and four groups, with some groups disabled. On a
+    /// host without it both engines run the portable build (the bit-against-integer properties
+    /// then cover it).
+    #[test]
+    fn the_v3_build_matches_the_portable_one() {
+        use super::{Geometry, IntegerEngine, PixelEngine, QeeSink};
+        use crate::QeeExpr;
+        use crate::command::{Bit, Cmp, Field, LogicOp};
+        use crate::qee::{Streams, Window};
+        let mut rng = pxpl5_geom::rng::Lcg::new(0x1A7E_6E2B_0B11);
+        let field = |offset, bits, signed| Field {
+            offset,
+            bits,
+            signed,
+        };
+        for (width, height) in [(64, 7), (128, 9), (256, 6)] {
+            let geometry = Geometry::new(width, height);
+            for trial in 0..40 {
+                let mut v3 = IntegerEngine::new(geometry, 208, 2);
+                for limb in v3.limbs.iter_mut() {
+                    limb.iter_mut().for_each(|w| *w = rng.next_u64());
+                }
+                for (g, en) in v3.regs.enable.iter_mut().enumerate() {
+                    *en = if (g + trial) % 3 == 0 {
+                        0
+                    } else {
+                        rng.next_u64()
+                    };
+                }
+                #[cfg(target_arch = "x86_64")]
+                assert_eq!(
+                    matches!(v3.arch, pulp::Arch::V3(_)),
+                    pulp::x86::V3::try_new().is_some(),
+                    "the v3 build is not the one the host can run"
+                );
+                let mut portable = IntegerEngine::new(geometry, 208, 2).portable();
+                portable.limbs = v3.limbs.clone();
+                portable.regs = v3.regs.clone();
+                let mut c = || rng.below(2001) as i64 - 1000;
+                let raw = [c(), c(), c(), c(), c(), c()];
+                // Each kind of work (trial % 5) with a linear row and a quadratic one.
+                let raw = if trial / 5 % 2 == 0 {
+                    [raw[0], raw[1], raw[2], 0, 0, 0]
+                } else {
+                    raw
+                };
+                let expr = QeeExpr::from_raw(raw);
+                let origin = (trial as u32 * 3, trial as u32 * 5);
+                let streams = Streams::for_rows(&expr, origin);
+                // Inside one limb, or across limbs 0 and 1 (trial / 10 odd).
+                let (offset, signed) = (if trial / 10 % 2 == 0 { 20 } else { 58 }, trial % 4 == 1);
+                let window = Window {
+                    shift: trial as u32 % 4,
+                    bits: 12,
+                };
+                let mut active = Vec::new();
+                v3.regs.enabled_groups(&mut active);
+                let sink = match trial % 5 {
+                    0 => None,
+                    1 => Some(QeeSink::Store {
+                        dst: field(offset, 12, signed),
+                    }),
+                    2 => Some(QeeSink::Add {
+                        dst: field(offset, 12, signed),
+                    }),
+                    3 => Some(QeeSink::Compare {
+                        field: field(offset, 12, signed),
+                        cmp: Cmp::Le,
+                        dst: Bit::Enable,
+                        combine: LogicOp::AND,
+                    }),
+                    _ => Some(QeeSink::Compare {
+                        field: field(offset, 12, signed),
+                        cmp: Cmp::Eq,
+                        dst: Bit::Flag(1),
+                        combine: LogicOp::OR,
+                    }),
+                };
+                match sink {
+                    Some(sink) => {
+                        v3.qee(&streams, window, sink, &active);
+                        portable.qee(&streams, window, sink, &active);
+                    }
+                    None => {
+                        let dst = field(offset, 12, signed);
+                        v3.write_const(dst, 0xABC, &active);
+                        portable.write_const(dst, 0xABC, &active);
+                    }
+                }
+                assert!(
+                    v3.limbs == portable.limbs && v3.regs == portable.regs,
+                    "{width} x {height}, trial {trial}: {sink:?} differs"
+                );
+            }
+        }
+    }
 
     /// `for_each_run` lists exactly the set bits of a mask, as disjoint ascending runs with a
     /// clear bit between neighbours: masks with runs at both ends, single bits, all and none.
