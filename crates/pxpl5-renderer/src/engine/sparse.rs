@@ -45,6 +45,8 @@
 //! Both are exact: a row or column is left out only where a conjunct is false at every pixel of
 //! it, and every row is solved from the same expressions by the same row solver as `integer`'s
 //! (`integer::sign_row`).
+//! Enable's solve is compiled for x86-64-v3 and portably, and [`pulp`] picks the build the CPU
+//! can run, as the `integer` level's group loops are; a test holds both to the same planes.
 
 use super::integer::{Hints, IntegerEngine, Unwrapped, may_wrap, sign_row};
 use super::{Geometry, PixelEngine, QeeSink, Registers, gated};
@@ -135,6 +137,9 @@ pub struct SparseEngine {
     last_base: (Vec<u64>, Option<Area>, u64),
     /// `chain_plane`'s lists, kept from one receiver to the next.
     scratch: Scratch,
+    /// The host instructions `materialise_enable`'s solve runs with, as the integer engine's
+    /// loops (x86-64-v3 where the CPU has it, else portable; the same planes either way).
+    arch: pulp::Arch,
 }
 
 /// The lists `chain_plane` builds for each chain, reused: a receiver's steps, their bounds, its
@@ -161,6 +166,7 @@ impl SparseEngine {
             enable_materialised: false,
             last_base: (Vec::new(), None, 0),
             scratch: Scratch::default(),
+            arch: pulp::Arch::new(),
         }
     }
 
@@ -477,7 +483,13 @@ impl SparseEngine {
         // of the main job's instructions, in calloc and free).
         let mut plane = std::mem::take(&mut self.inner.registers_mut().enable);
         let mut scratch = std::mem::take(&mut self.scratch);
-        self.chain_plane(e, &mut plane, &mut scratch);
+        let arch = self.arch;
+        arch.dispatch(ChainPlane {
+            engine: self,
+            e,
+            plane: &mut plane,
+            scratch: &mut scratch,
+        });
         self.scratch = scratch;
         self.inner.registers_mut().enable = plane;
         self.release(e);
@@ -518,6 +530,7 @@ impl SparseEngine {
     /// though a row beside a polygon's vertex takes the two edges that meet there).
     /// Into `plane`, a buffer of a plane's length whose contents are overwritten; `scratch`'s
     /// lists are overwritten too.
+    #[inline(always)]
     fn chain_plane(&self, e: u32, plane: &mut [u64], scratch: &mut Scratch) {
         let ep = self.epoch(e);
         if ep.conj.is_empty() {
@@ -628,6 +641,23 @@ impl SparseEngine {
             }
         }
         plane
+    }
+}
+
+/// `chain_plane` compiled once per instruction set [`pulp::Arch::dispatch`] can choose.
+struct ChainPlane<'a> {
+    engine: &'a SparseEngine,
+    e: u32,
+    plane: &'a mut [u64],
+    scratch: &'a mut Scratch,
+}
+
+impl pulp::WithSimd for ChainPlane<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn with_simd<S: pulp::Simd>(self, _: S) {
+        self.engine.chain_plane(self.e, self.plane, self.scratch)
     }
 }
 
@@ -1704,6 +1734,53 @@ mod tests {
             y0: 0,
             y1: h - 1,
         }
+    }
+
+    /// `materialise_enable` solves a chain in the build `arch` dispatches to (x86-64-v3 where
+    /// this host has it) and `materialised` in the portable one: both give the same plane for
+    /// receivers of one to four edges, half-planes and ellipses ANDed into enable, and with a
+    /// flag layer written between them. On a host without x86-64-v3 both are portable.
+    #[test]
+    fn the_dispatched_solve_matches_the_portable_one() {
+        let g = Geometry::new(128, 128);
+        #[cfg(target_arch = "x86_64")]
+        assert_eq!(
+            matches!(SparseEngine::new(g, 208, 2).arch, pulp::Arch::V3(_)),
+            pulp::x86::V3::try_new().is_some(),
+            "the dispatched build is not the one the host can run"
+        );
+        let mut r = 0x00C0_FFEE_D00D_u64;
+        let mut pixels = 0;
+        for trial in 0..200 {
+            let mut e = SparseEngine::new(g, 208, 2);
+            let origin = (draw(&mut r, 0, 200) as u32, draw(&mut r, 0, 200) as u32);
+            assert!(e.defer(&Command::enable_all(), origin));
+            for _ in 0..draw(&mut r, 1, 4) {
+                let expr = if trial % 2 == 0 {
+                    let (cx, cy) = (draw(&mut r, 0, 330), draw(&mut r, 0, 330));
+                    let (kx, ky) = (draw(&mut r, -40, 40), draw(&mut r, -40, 40));
+                    QeeExpr::from_raw([kx, ky, -(kx * cx + ky * cy), 0, 0, 0])
+                } else {
+                    random_ellipse(&mut r).0.streams.expr
+                };
+                let window = expr.sign_window(origin, 128, 128);
+                let cmd = Command::QeeSign {
+                    expr,
+                    window,
+                    dst: Bit::Enable,
+                    combine: LogicOp::AND,
+                };
+                assert!(e.defer(&cmd, origin));
+            }
+            let portable = e.materialised().enable;
+            e.materialise_enable();
+            assert_eq!(e.inner.registers().enable, portable, "trial {trial}");
+            pixels += portable.iter().map(|w| w.count_ones()).sum::<u32>();
+        }
+        assert!(
+            pixels > 100_000,
+            "{pixels} pixels enabled: the receivers miss the board"
+        );
     }
 
     /// `half_plane_rows` writes exactly the base's pixels inside every half-plane on the area's
