@@ -119,16 +119,18 @@ pub fn round(x: f64) -> f64 {
         return x;
     }
     let t = (x as i64) as f64;
-    let d = x - t;
-    let r = if d >= 0.5 {
-        t + 1.0
-    } else if d <= -0.5 {
-        t - 1.0
+    // The fraction x - t has x's sign: a step of one away from zero where it is at least a
+    // half. A select, not a branch: the fractions of a GP's coefficients are as likely above a
+    // half as below, and the branches' mispredictions made `QeeExpr::quantise` 3.6 % of the
+    // main job's hemisphere in CPU time (`perf record -e cpu-clock`), three times its share of
+    // instructions; 1.9 % with the select.
+    let step = if (x - t).abs() >= 0.5 {
+        1f64.copysign(x)
     } else {
-        t
+        0.0
     };
     // -0.3 rounds to -0.
-    r.copysign(x)
+    (t + step).copysign(x)
 }
 
 /// `x.log2().floor()` as an integer, for a positive finite x: the float's exponent, without the
