@@ -241,10 +241,13 @@ impl Machine {
                     }
                 }
             }
-            let next = [self.events.peek_tick(), self.ring.next_event_tick()]
-                .into_iter()
-                .flatten()
-                .min();
+            // A match, not `min` over an array's iterator: that iterator, built on the stack
+            // in pieces and read back whole, stalled the instant's loop (the loop's hottest
+            // instruction by `perf record -e cpu-clock`, 2 % of the main job's CPU time).
+            let next = match (self.events.peek_tick(), self.ring.next_event_tick()) {
+                (Some(a), Some(b)) => Some(a.min(b)),
+                (a, b) => a.or(b),
+            };
             let Some(next) = next else {
                 return Err(RunError::Deadlock {
                     at: self.now,
