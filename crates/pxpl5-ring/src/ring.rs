@@ -391,7 +391,8 @@ impl Ring {
         }
         let mut caps = std::mem::take(self.caps.get_mut());
         // Edge `t` decides only if it lies before `until` (see the crate doc, "calls and time").
-        let stop = self.clock.cycles_ceil(until).get();
+        let edges = self.clock.cycles_floor_ceil(until);
+        let stop = edges.1.get();
         while let Some(t) = self.next_decision() {
             if t >= stop {
                 break;
@@ -400,7 +401,7 @@ impl Ring {
             Self::check_progress(&caps, t);
         }
         *self.caps.get_mut() = caps;
-        self.finish(until);
+        self.finish(until, edges);
     }
 
     /// The reference for [`Ring::advance`]: the same, but visiting every channel clock one by one
@@ -411,13 +412,14 @@ impl Ring {
             return;
         }
         let mut caps = Vec::new();
-        let stop = self.clock.cycles_ceil(until).get();
+        let edges = self.clock.cycles_floor_ceil(until);
+        let stop = edges.1.get();
         let mut t = self.flow.next_clock;
         while t < stop {
             self.step(t, &mut caps);
             t += 1;
         }
-        self.finish(until);
+        self.finish(until, edges);
     }
 
     /// The fast path only stops at clocks where [`engine::next_decision`] found a token standing
@@ -442,10 +444,12 @@ impl Ring {
         }
     }
 
-    fn finish(&mut self, until: Tick) {
-        self.run_events(self.clock.cycles_floor(until).get());
+    /// Events due by `until`, whose clock edges before and after it are `(floor, ceil)`
+    /// ([`ClockDomain::cycles_floor_ceil`]).
+    fn finish(&mut self, until: Tick, (floor, ceil): (Cycles, Cycles)) {
+        self.run_events(floor.get());
         self.now = until;
-        let next = self.clock.cycles_ceil(until).get();
+        let next = ceil.get();
         assert!(
             self.flow.next_clock <= next,
             "pxpl5-ring model bug on channel (any), clock {}: decided past {until}",

@@ -119,8 +119,15 @@ impl ClockDomain {
 
     /// The first clock edge at or after `tick`, as a cycle count (rounded up).
     pub fn cycles_ceil(self, tick: Tick) -> Cycles {
+        self.cycles_floor_ceil(tick).1
+    }
+
+    /// [`ClockDomain::cycles_floor`] and [`ClockDomain::cycles_ceil`] of `tick` by one
+    /// division: a caller that needs both at every instant (the ring) took three.
+    pub fn cycles_floor_ceil(self, tick: Tick) -> (Cycles, Cycles) {
         let whole = tick.0 / self.period_ps;
-        Cycles(whole + u64::from(tick.0 % self.period_ps != 0))
+        let ceil = whole + u64::from(tick.0 % self.period_ps != 0);
+        (Cycles(whole), Cycles(ceil))
     }
 
     /// The first clock edge at or after `tick`.
