@@ -37,7 +37,11 @@ pub(crate) struct Params {
 impl Params {
     /// Hops from `src` to `dst` in the direction of data flow (increasing position, wrapping).
     pub fn hops(&self, src: u32, dst: u32) -> u64 {
-        u64::from((dst + self.nodes - src) % self.nodes)
+        debug_assert!(src < self.nodes && dst < self.nodes);
+        // Below 2 nodes: one subtraction, not the division of a `%` (a ring decision takes one
+        // a waiting node a token).
+        let d = dst + self.nodes - src;
+        u64::from(if d >= self.nodes { d - self.nodes } else { d })
     }
 
     /// Clocks for a free token to go once round the ring.
@@ -213,7 +217,12 @@ fn startable<'a>(p: &Params, out: &'a Queues, flow: &Flow, q: u32) -> Option<&'a
 fn normalise(p: &Params, tok: &mut Token, t: u64) {
     if tok.at < t {
         let steps = (t - tok.at).div_ceil(p.hop);
-        tok.pos = ((u64::from(tok.pos) + steps % u64::from(p.nodes)) % u64::from(p.nodes)) as u32;
+        // The token's new position, pos + steps round the ring, dividing only for a lap or
+        // more (it is called for every channel at every decision).
+        let nodes = u64::from(p.nodes);
+        let within = if steps < nodes { steps } else { steps % nodes };
+        let pos = u64::from(tok.pos) + within;
+        tok.pos = (if pos >= nodes { pos - nodes } else { pos }) as u32;
         tok.at += steps * p.hop;
     }
 }
@@ -243,7 +252,7 @@ pub(crate) fn decide_at(
         normalise(p, &mut tok, t);
         if tok.at == t {
             let q = tok.pos;
-            let next = (q + 1) % p.nodes;
+            let next = if q + 1 == p.nodes { 0 } else { q + 1 };
             let ready = startable(p, out, flow, q).filter(|pkt| pkt.eligible <= t);
             if let Some(&pkt) = ready {
                 let cap = capture(p, flow, c, pkt, t);
