@@ -26,15 +26,19 @@ use crate::gp::{Payload, Unit};
 use crate::run::RunError;
 use crate::stats::RendererNodeStats;
 
-/// A command waiting in the input queue.
-struct QueuedCommand {
-    command: Command,
+/// A command message in the input queue, with the commands the board has not started. Its
+/// commands stay in the message's own list, taken by reference when each starts: moving each
+/// into a queue of commands and out again took about 2 % of the main job's hemicube in CPU
+/// time by `perf record -e cpu-clock`'s samples (0.5 % now), though host seconds moved less
+/// than their jitter.
+struct QueuedMessage {
+    commands: Vec<Command>,
+    /// The next command to start.
+    next: usize,
     from: Unit,
-    /// The ring message it came in.
+    /// The ring message they came in.
     message: MessageId,
-    /// Whether it is its message's last command (its completion frees the message).
-    last_in_message: bool,
-    /// For its message's first command: when the message was handed over, and the critical
+    /// Until its first command starts: when the message was handed over, and the critical
     /// path to then (see `critical`).
     arrival: Option<Box<(Tick, Profile)>>,
 }
@@ -66,7 +70,7 @@ pub(crate) struct RendererNode {
     index: u32,
     board: Board,
     clock: ClockDomain,
-    queue: VecDeque<QueuedCommand>,
+    queue: VecDeque<QueuedMessage>,
     running: Option<Running>,
     /// Readback messages waiting for output-queue space, in order.
     outbox: VecDeque<Outgoing>,
@@ -133,18 +137,17 @@ impl RendererNode {
         commands: Vec<Command>,
         arrival: (Tick, Profile),
     ) -> bool {
-        let n = commands.len();
-        let mut arrival = Some(Box::new(arrival));
-        for (i, command) in commands.into_iter().enumerate() {
-            self.queue.push_back(QueuedCommand {
-                command,
-                from,
-                message,
-                last_in_message: i + 1 == n,
-                arrival: arrival.take(),
-            });
+        if commands.is_empty() {
+            return false;
         }
-        n > 0
+        self.queue.push_back(QueuedMessage {
+            commands,
+            next: 0,
+            from,
+            message,
+            arrival: Some(Box::new(arrival)),
+        });
+        true
     }
 
     pub fn is_running(&self) -> bool {
@@ -169,20 +172,28 @@ impl RendererNode {
     /// Start the next queued command at `now` (at the next Renderer clock edge, or later if the
     /// board is still busy); `None` if nothing is queued.
     pub fn start_next(&mut self, now: Tick) -> Result<Option<Started>, RunError> {
-        let Some(q) = self.queue.pop_front() else {
+        let Some(q) = self.queue.front_mut() else {
             return Ok(None);
         };
+        let command = &q.commands[q.next];
         let start_cycle = self.clock.cycles_ceil(now);
         self.board.idle_until(start_cycle);
         let executed = self
             .board
-            .execute(&q.command)
+            .execute(command)
             .map_err(|error| RunError::Command {
                 renderer: self.index,
-                kind: q.command.kind(),
+                kind: command.kind(),
                 from: q.from,
                 error,
             })?;
+        let kind_index = command.kind_index();
+        q.next += 1;
+        let (message, last_in_message) = (q.message, q.next == q.commands.len());
+        let arrival = q.arrival.take();
+        if last_in_message {
+            self.queue.pop_front();
+        }
         let start = self.clock.to_ticks(executed.start);
         let end = self.clock.to_ticks(executed.end);
         self.busy += end - start;
@@ -203,18 +214,18 @@ impl RendererNode {
             }));
         }
         self.running = Some(Running {
-            message: q.message,
-            last_in_message: q.last_in_message,
+            message,
+            last_in_message,
         });
         Ok(Some(Started {
-            kind_index: q.command.kind_index(),
+            kind_index,
             start,
             end,
-            first_in_message: q.arrival.is_some(),
-            arrival: q.arrival,
+            first_in_message: arrival.is_some(),
+            arrival,
             readback,
-            message: q.message,
-            last_in_message: q.last_in_message,
+            message,
+            last_in_message,
         }))
     }
 
@@ -247,7 +258,10 @@ impl RendererNode {
             format!(
                 "  Renderer {}: {} commands queued, {} readbacks waiting for the ring",
                 self.index,
-                self.queue.len(),
+                self.queue
+                    .iter()
+                    .map(|q| q.commands.len() - q.next)
+                    .sum::<usize>(),
                 self.outbox.len()
             )
         })
