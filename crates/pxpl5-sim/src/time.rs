@@ -123,7 +123,7 @@ impl ClockDomain {
     }
 
     /// [`ClockDomain::cycles_floor`] and [`ClockDomain::cycles_ceil`] of `tick` by one
-    /// division: a caller that needs both at every instant (the ring) took three.
+    /// division, not the three of calling both, for a caller that needs both at every instant.
     pub fn cycles_floor_ceil(self, tick: Tick) -> (Cycles, Cycles) {
         let whole = tick.0 / self.period_ps;
         let ceil = whole + u64::from(tick.0 % self.period_ps != 0);
