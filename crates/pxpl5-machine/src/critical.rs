@@ -216,7 +216,8 @@ impl Profile {
         }
     }
 
-    /// This profile with `d` more spent in `cat`.
+    /// This profile with `d` more spent in `cat` (the machine adds in place, [`Profile::add`]).
+    #[cfg(test)]
     pub fn plus(&self, cat: Cat, d: Tick) -> Profile {
         let mut p = self.clone();
         p.add(cat, d);

@@ -350,7 +350,7 @@ impl Machine {
                     );
                     let sent = Sent {
                         at: self.now,
-                        profile: node.profile.clone(),
+                        profile: Box::new(node.profile.clone()),
                     };
                     self.recorder
                         .message_sent(taken.0, Unit::Gp(g as u32), self.now);
@@ -475,10 +475,13 @@ impl Machine {
             id,
             to,
             message,
-            sent,
+            sent: Sent {
+                at,
+                profile: mut arrived,
+            },
         } = a;
         // The critical path to the handing over: the sender's, then the ring's.
-        let arrived = sent.profile.plus(self.fixed.ring, self.now - sent.at);
+        arrived.add(self.fixed.ring, self.now - at);
         match to {
             Unit::Gp(g) => {
                 self.consume(id);
@@ -486,7 +489,7 @@ impl Machine {
                 let node = &mut self.gps[g as usize];
                 if let Some(until) = node.deliver(self.now, message, &self.cfg.gp.costs) {
                     // The GP waited for this message: its path runs through it.
-                    node.profile = arrived;
+                    node.profile = *arrived;
                     self.gp_busy(g, until, Busy::Receive);
                 }
                 self.gp_mark(g as usize);
@@ -549,11 +552,11 @@ impl Machine {
                 .expect("the outgoing message offered a moment ago");
             let sent = Sent {
                 at: self.now,
-                profile: node.profile.plus_by(
+                profile: Box::new(node.profile.plus_by(
                     self.fixed.readback_waits,
                     self.now - node.last_end,
                     Unit::Renderer(r),
-                ),
+                )),
             };
             self.recorder.message_sent(id, Unit::Renderer(r), self.now);
             self.delivery.sent(id, route, out.payload, sent);
@@ -562,15 +565,16 @@ impl Machine {
             return Ok(false);
         };
         self.recorder.renderer_command(r, &started);
-        self.renderer_path(r, &started);
-        self.schedule(started.end, Event::RendererDone(r));
+        let end = started.end;
+        self.renderer_path(r, started);
+        self.schedule(end, Event::RendererDone(r));
         Ok(true)
     }
 
     /// Extend Renderer `r`'s critical path by a command that started: from the later of the
     /// board's previous command and the command's message, through any wait (readback words the
     /// ring had no room for, or a stall), to the command's end.
-    fn renderer_path(&mut self, r: u32, started: &Started) {
+    fn renderer_path(&mut self, r: u32, started: Started) {
         let kind = match self.kinds[started.kind_index] {
             Some(c) => c,
             None => {
@@ -588,11 +592,11 @@ impl Machine {
         };
         let unit = Unit::Renderer(r);
         let run = started.end - started.start;
-        match started.arrival.as_deref() {
-            Some((at, profile)) if *at > node.last_end => {
-                let mut path = profile.plus_by(self.fixed.stall, started.start - *at, unit);
+        match started.arrival {
+            Some((at, mut path)) if at > node.last_end => {
+                path.add_by(self.fixed.stall, started.start - at, unit);
                 path.add_by(kind, run, unit);
-                node.profile = path;
+                node.profile = *path;
             }
             // The board's own previous command is the cause: its path grows in place (a copy of
             // the 400-byte profile per command was 1.5 % of a radiosity run's instructions).

@@ -40,7 +40,7 @@ struct QueuedMessage {
     message: MessageId,
     /// Until its first command starts: when the message was handed over, and the critical
     /// path to then (see `critical`).
-    arrival: Option<Box<(Tick, Profile)>>,
+    arrival: Option<(Tick, Box<Profile>)>,
 }
 
 /// The command executing now: only what its completion needs.
@@ -56,7 +56,7 @@ pub(crate) struct Started {
     pub start: Tick,
     pub end: Tick,
     /// Its message's arrival, for a message's first command.
-    pub arrival: Option<Box<(Tick, Profile)>>,
+    pub arrival: Option<(Tick, Box<Profile>)>,
     /// Whether it left readback messages for the ring.
     pub readback: bool,
     /// The ring message it came in, and whether it is that message's first and last command
@@ -135,7 +135,7 @@ impl RendererNode {
         from: Unit,
         message: MessageId,
         commands: Vec<Command>,
-        arrival: (Tick, Profile),
+        arrival: (Tick, Box<Profile>),
     ) -> bool {
         if commands.is_empty() {
             return false;
@@ -145,7 +145,7 @@ impl RendererNode {
             next: 0,
             from,
             message,
-            arrival: Some(Box::new(arrival)),
+            arrival: Some(arrival),
         });
         true
     }
