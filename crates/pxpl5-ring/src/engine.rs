@@ -38,8 +38,8 @@ impl Params {
     /// Hops from `src` to `dst` in the direction of data flow (increasing position, wrapping).
     pub fn hops(&self, src: u32, dst: u32) -> u64 {
         debug_assert!(src < self.nodes && dst < self.nodes);
-        // Below 2 nodes: one subtraction, not the division of a `%` (a ring decision takes one
-        // a waiting node a token).
+        // Below twice the nodes: one subtraction, not the division of a `%` (a ring decision
+        // takes a hop count for every waiting node and token).
         let d = dst + self.nodes - src;
         u64::from(if d >= self.nodes { d - self.nodes } else { d })
     }
