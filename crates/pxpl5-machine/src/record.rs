@@ -461,7 +461,7 @@ impl Recorder {
     }
 
     pub(crate) fn ring_sample(&mut self, now: Tick, ring: &Ring) {
-        if self.trace.is_none() && self.vcd.is_none() {
+        if !self.records() {
             return;
         }
         if let Some(c) = &mut self.trace {
@@ -563,6 +563,12 @@ impl Recorder {
             }
         }
         spans
+    }
+
+    /// Whether anything is recorded: an event trace or a VCD, which sample the ring at every
+    /// instant of the machine's loop.
+    pub(crate) fn records(&self) -> bool {
+        self.trace.is_some() || self.vcd.is_some()
     }
 
     /// Whether an event trace is recorded (then the machine keeps its critical paths' segments).

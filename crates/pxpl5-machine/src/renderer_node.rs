@@ -169,6 +169,12 @@ impl RendererNode {
         self.outbox.pop_front()
     }
 
+    /// [`Command::kind_index`] of the next queued command, if any.
+    pub fn next_kind_index(&self) -> Option<usize> {
+        let q = self.queue.front()?;
+        Some(q.commands[q.next].kind_index())
+    }
+
     /// Start the next queued command at `now` (at the next Renderer clock edge, or later if the
     /// board is still busy); `None` if nothing is queued.
     pub fn start_next(&mut self, now: Tick) -> Result<Option<Started>, RunError> {

@@ -704,6 +704,151 @@ fn a_program_error_names_its_gp() {
 }
 
 // ---------------------------------------------------------------------------------------------
+// A board's commands back to back
+// ---------------------------------------------------------------------------------------------
+
+/// A run of `p` with nothing recorded (a board then runs the commands of a message back to back,
+/// without an instant of the loop each) and with a VCD recorded (every completion at its
+/// instant of the loop): what each gave, as the text of its error or of its stats, and the
+/// instants the loop stepped through.
+fn quiet_and_recorded(cfg: &MachineConfig, p: &dyn Program, max_time: Tick) -> [(String, u64); 2] {
+    [None, Some(TraceWindow::parse("0..").unwrap())].map(|vcd| {
+        match run_with(
+            cfg,
+            p,
+            Fidelity::Integer,
+            max_time,
+            Recorder::new(None, vcd),
+        ) {
+            Ok(r) => (r.stats.to_json().to_string(), r.host.instants),
+            Err(e) => (e.to_string(), 0),
+        }
+    })
+}
+
+/// Eight messages of six commands each, to two boards, with a readback to GP 0 in the middle of
+/// each board's stream.
+fn back_to_back_program() -> impl Program {
+    program("back-to-back", |gp| {
+        Box::pin(async move {
+            if gp.index() != 0 {
+                return Ok(());
+            }
+            for m in 0..8u32 {
+                let commands = (0..6u32)
+                    .map(|k| Command::WriteConst {
+                        dst: field(8 * (k % 4), 8 + 8 * (m % 2)),
+                        value: u64::from(m * 6 + k),
+                    })
+                    .collect();
+                gp.send_commands(m % 2, commands).await;
+                if m == 3 || m == 4 {
+                    let rect = Rect {
+                        x: 0,
+                        y: 0,
+                        width: 4,
+                        height: 1,
+                    };
+                    let readback = Command::Readback {
+                        field: field(0, 16),
+                        rect,
+                        dest: Unit::Gp(0).encode(),
+                        tag: m,
+                    };
+                    gp.send_commands(m % 2, vec![readback]).await;
+                    gp.recv().await;
+                }
+            }
+            Ok(())
+        })
+    })
+}
+
+#[test]
+fn a_board_runs_a_messages_commands_back_to_back_with_the_same_stats() {
+    let cfg = machine(1, 2, 2);
+    let [(quiet, quiet_instants), (recorded, recorded_instants)] = quiet_and_recorded(
+        &cfg,
+        &back_to_back_program(),
+        RunOptions::default().max_time,
+    );
+    assert_eq!(quiet, recorded);
+    assert!(quiet.contains("\"commands\":25"), "{quiet}");
+    // Each message's first five completions need no instant of the loop: up to 40 fewer (fewer
+    // when another unit acts at the same instant).
+    let saved = recorded_instants - quiet_instants;
+    assert!(
+        (30..=40).contains(&saved),
+        "{quiet_instants} of {recorded_instants}"
+    );
+}
+
+#[test]
+fn a_time_limit_in_a_message_stops_the_run_where_the_loop_would() {
+    let cfg = machine(1, 2, 2);
+    let p = back_to_back_program();
+    let end = run(&cfg, &p).unwrap().stats.end;
+    // Limits every 100 ns up to the run's end: each falls somewhere in a board's stream.
+    let (mut limited, mut step) = (0, Tick(100_000));
+    while step < end {
+        let [quiet, recorded] = quiet_and_recorded(&cfg, &p, step);
+        assert_eq!(quiet.0, recorded.0, "limit {step}");
+        limited += usize::from(quiet.0.contains("commands queued"));
+        step += Tick(100_000);
+    }
+    assert!(limited > 10, "{limited} limits fell in a board's stream");
+}
+
+#[test]
+fn a_refused_command_in_a_message_fails_the_run_when_the_loop_would() {
+    // GP 0 sends a message whose third command names a field beyond pixel memory; GP 1 fails
+    // after computing for a while. Whichever comes first in simulated time is the run's error,
+    // however far ahead of the loop the board runs.
+    let cfg = machine(2, 1, 1);
+    let memory = cfg.renderer.pixel_memory_bits;
+    let (mut gp_first, mut board_first) = (0, 0);
+    for wait in (0..400).step_by(10) {
+        let p = program("refused", move |gp| {
+            Box::pin(async move {
+                if gp.index() == 1 {
+                    gp.compute_cycles(Cycles(wait)).await;
+                    return Err(ProgramError("late".into()));
+                }
+                let mut commands = vec![
+                    Command::WriteConst {
+                        dst: field(0, 32),
+                        value: 1,
+                    };
+                    4
+                ];
+                commands[2] = Command::WriteConst {
+                    dst: field(memory, 8),
+                    value: 1,
+                };
+                gp.send_commands(0, commands).await;
+                Ok(())
+            })
+        });
+        let [quiet, recorded] = quiet_and_recorded(&cfg, &p, RunOptions::default().max_time);
+        assert_eq!(quiet.0, recorded.0, "GP 1 fails after {wait} cycles");
+        if quiet.0.contains("late") {
+            gp_first += 1;
+        } else {
+            assert!(
+                quiet.0.contains("rejected command write_const"),
+                "{}",
+                quiet.0
+            );
+            board_first += 1;
+        }
+    }
+    assert!(
+        gp_first > 0 && board_first > 0,
+        "{gp_first} / {board_first}"
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
 // 8-9. A mixed program: determinism, traces, fidelity
 // ---------------------------------------------------------------------------------------------
 
