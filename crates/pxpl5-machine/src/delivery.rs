@@ -7,8 +7,6 @@
 //! is held here until that message arrives. Order between *different* routes is not kept, as on
 //! the real machine; programs that need it order their senders themselves (fences).
 
-use std::collections::BTreeMap;
-
 use pxpl5_ring::MessageId;
 
 use pxpl5_sim::{SeqMap, Tick};
@@ -84,8 +82,11 @@ struct RouteState {
     next_send: u64,
     /// The number of the next message to hand to the receiver.
     next_deliver: u64,
-    /// Arrivals that overtook an earlier message of the route, by sequence number.
-    held: BTreeMap<u64, Arrival>,
+    /// Arrivals that overtook an earlier message of the route, with their sequence numbers,
+    /// latest first (the next one due is the last). A list kept across uses, not a `BTreeMap`:
+    /// few are held at once, and the map allocated a node of eleven arrivals for each that was
+    /// (30 K in the main job's hemicube).
+    held: Vec<(u64, Arrival)>,
 }
 
 /// Every message between sending and handing over.
@@ -191,9 +192,15 @@ impl Delivery {
             state.next_deliver += 1;
             due.push(arrival);
         } else {
-            state.held.insert(seq, arrival);
+            let at = state.held.partition_point(|&(s, _)| s > seq);
+            state.held.insert(at, (seq, arrival));
         }
-        while let Some(a) = state.held.remove(&state.next_deliver) {
+        while state
+            .held
+            .last()
+            .is_some_and(|&(s, _)| s == state.next_deliver)
+        {
+            let (_, a) = state.held.pop().expect("looked at a moment ago");
             state.next_deliver += 1;
             due.push(a);
         }
