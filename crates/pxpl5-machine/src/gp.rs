@@ -158,6 +158,9 @@ pub enum Request {
     Send(Unit, Payload),
     /// Wait for the next message.
     Recv,
+    /// Nothing but the present: a program that looks at its mailbox while its GP runs ahead of
+    /// the machine's time (`Shared::ahead`) waits for the machine to reach it first.
+    Sync,
 }
 
 /// The cell a GP's futures and the machine share.
@@ -168,6 +171,10 @@ pub(crate) struct Shared {
     pub mailbox: VecDeque<Message>,
     pub received: Option<Message>,
     pub now: Tick,
+    /// Whether the program is polled ahead of the machine's time: at the end of computing it
+    /// asked for, before the machine reaches that instant (see `gp_node`). `now` is then that
+    /// end; what arrives meanwhile is not in the mailbox yet.
+    pub ahead: bool,
     pub phase_marks: Vec<PhaseMark>,
     /// Messages received (and charged) that the program did not want yet, in arrival order: the
     /// selective receive of [`Gp::recv_where`] takes from here first.
@@ -451,7 +458,12 @@ impl Gp {
     /// nothing is charged (\[choice\]: an i860 load of a status register, a few cycles, where a
     /// receive costs `message_receive`). A program with work in hand uses it to receive only what
     /// is there.
-    pub fn has_message(&self, want: impl Fn(&Message) -> bool) -> bool {
+    pub async fn has_message(&self, want: impl Fn(&Message) -> bool) -> bool {
+        // Ahead of the machine's time, the mailbox lacks what arrives until now: wait for the
+        // machine to reach now, which costs nothing.
+        if self.shared.borrow().ahead {
+            self.wait(Request::Sync).await;
+        }
         let s = self.shared.borrow();
         s.stash.iter().any(&want) || s.mailbox.iter().any(&want)
     }

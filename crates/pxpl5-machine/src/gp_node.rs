@@ -6,6 +6,18 @@
 //! computation, or the software cost of a send or receive), `BlockedSend` while the ring's output
 //! queue is full, `Receiving` until a message comes. The machine owns time, the ring and the
 //! events; this module only keeps the GP's side consistent.
+//!
+//! **Running ahead.** A program that asks only to compute, piece after piece, changes nothing
+//! another unit can see until it asks for something else. So, unless the run is recorded, a
+//! GP that asks to compute is polled again at once, at the end of that computing (its `now`
+//! then, `Shared::ahead` set), and again while it asks only to compute and marks no phase: the
+//! machine sees one busy time, their sum, and one wake-up instead of one a piece. What the
+//! program asks next (a send, a receive, a phase mark with its computing, its end) is kept and
+//! taken up at that wake-up, as if it had been asked then. Exact because each piece's time is
+//! `cycles x period` (they add), the critical path charges the sum to the same phase, and a
+//! program ahead of the machine sees nothing it could not see then: its `now` is that time,
+//! and a look at its mailbox ([`crate::Gp::has_message`]) first waits for the machine to get
+//! there. In the main job's hemicube, a GP's receivers are each a piece of work.
 
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -16,7 +28,7 @@ use pxpl5_sim::{ClockDomain, Cycles, Tick};
 
 use crate::critical::Profile;
 use crate::delivery::Outgoing;
-use crate::gp::{Gp, GpFuture, Message, PhaseMark, Program, Request, Shared};
+use crate::gp::{Gp, GpFuture, Message, PhaseMark, Program, ProgramError, Request, Shared};
 use crate::run::RunError;
 use crate::stats::GpStats;
 
@@ -36,6 +48,26 @@ pub(crate) enum Busy {
     Compute,
     Send,
     Receive,
+}
+
+/// What a poll of the program led to.
+enum Outcome {
+    /// It finished, or failed.
+    Ended(Result<(), ProgramError>),
+    /// It waits on this request (`None`: on something that is not a GP request).
+    Asked(Option<Request>),
+}
+
+/// Most polls of a program ahead of the machine's time in one run-ahead: the loop looks at the
+/// host's stop requests between instants, and a program computing in many small pieces would
+/// otherwise keep it in one.
+const MAX_AHEAD: usize = 1024;
+
+/// What a program did ahead of the machine's time, taken up at the wake-up that reaches it:
+/// the phases it marked and what its poll led to.
+struct Parked {
+    marks: Vec<PhaseMark>,
+    outcome: Outcome,
 }
 
 /// What a GP is doing.
@@ -66,11 +98,16 @@ pub(crate) struct GpNode {
     pub profile: Profile,
     /// Since when a blocked send has waited for output-queue space.
     pub blocked_since: Tick,
+    /// Whether the program may run ahead of the machine's time (see the module doc): not in a
+    /// recorded run, whose trace shows each piece of computing.
+    runs_ahead: bool,
+    /// What the program did ahead of the machine, for the wake-up that reaches it.
+    parked: Option<Parked>,
 }
 
 impl GpNode {
     /// GP `gp.index()` running `program`.
-    pub fn new(gp: Gp, program: &dyn Program, clock: ClockDomain) -> GpNode {
+    pub fn new(gp: Gp, program: &dyn Program, clock: ClockDomain, runs_ahead: bool) -> GpNode {
         GpNode {
             index: gp.index,
             shared: gp.shared.clone(),
@@ -83,31 +120,102 @@ impl GpNode {
             messages_received: 0,
             profile: Profile::default(),
             blocked_since: Tick::ZERO,
+            runs_ahead,
+            parked: None,
         }
     }
 
-    /// Run the program at `now` (the GP must be runnable) until it waits again, and take up what
-    /// it asked for, priced by `costs`.
-    pub fn run(&mut self, now: Tick, costs: &GpCostTable) -> Result<GpStep, RunError> {
-        self.shared.borrow_mut().now = now;
+    /// Poll the program at `at` and take what it asked for.
+    fn poll(&mut self, at: Tick) -> Outcome {
+        self.shared.borrow_mut().now = at;
         let mut fut = self.future.take().expect("a runnable GP has its future");
         match fut.as_mut().poll(&mut Context::from_waker(Waker::noop())) {
-            Poll::Ready(Ok(())) => {
+            Poll::Ready(result) => Outcome::Ended(result),
+            Poll::Pending => {
+                self.future = Some(fut);
+                Outcome::Asked(self.shared.borrow_mut().request.take())
+            }
+        }
+    }
+
+    /// The program asked to compute `computing` GP cycles from `now`: while it asks only to
+    /// compute more and marks no phase, poll it again at the end of what it asked for so far
+    /// (see the module doc). Returns all it asked to compute; what its last poll led to, and the
+    /// phases marked in it, are parked for the wake-up at the end.
+    ///
+    /// It stops, and parks what was asked, at the run's time `limit` (the loop stops at the
+    /// first wake-up past it, so a program computing forever ends there as it would piece by
+    /// piece) and after [`MAX_AHEAD`] polls (so the loop still looks at the host's stop requests).
+    fn run_ahead(&mut self, now: Tick, mut computing: Cycles, limit: Tick) -> Cycles {
+        for _ in 0..MAX_AHEAD {
+            let at = now + self.clock.to_ticks(computing);
+            if at > limit {
+                return computing;
+            }
+            let marked = {
+                let mut s = self.shared.borrow_mut();
+                s.granted = true;
+                s.ahead = true;
+                s.phase_marks.len()
+            };
+            let outcome = self.poll(at);
+            let mut s = self.shared.borrow_mut();
+            s.ahead = false;
+            match outcome {
+                Outcome::Asked(Some(Request::Compute(c))) if s.phase_marks.len() == marked => {
+                    computing = Cycles(computing.0.saturating_add(c.0));
+                }
+                outcome => {
+                    let marks = s.phase_marks.split_off(marked);
+                    self.parked = Some(Parked { marks, outcome });
+                    return computing;
+                }
+            }
+        }
+        // Stopped short of polling again: the program waits on its last piece, granted at the
+        // wake-up as usual.
+        computing
+    }
+
+    /// Run the program at `now` (the GP must be runnable) until it waits again, and take up what
+    /// it asked for, priced by `costs`; or take up what it asked for ahead of the machine, parked
+    /// for now. `limit` is the run's time limit.
+    pub fn run(&mut self, now: Tick, costs: &GpCostTable, limit: Tick) -> Result<GpStep, RunError> {
+        let mut outcome = match self.parked.take() {
+            Some(Parked { marks, outcome }) => {
+                self.shared.borrow_mut().phase_marks.extend(marks);
+                outcome
+            }
+            None => self.poll(now),
+        };
+        // A look at the present costs nothing: the program goes on at once.
+        while let Outcome::Asked(Some(Request::Sync)) = outcome {
+            self.grant();
+            outcome = self.poll(now);
+        }
+        let request = match outcome {
+            Outcome::Ended(Ok(())) => {
                 self.state = GpState::Done;
                 self.finished = Some(now);
                 return Ok(GpStep::Finished);
             }
-            Poll::Ready(Err(e)) => {
+            Outcome::Ended(Err(e)) => {
                 return Err(RunError::Program {
                     gp: self.index,
                     message: e.0,
                 });
             }
-            Poll::Pending => self.future = Some(fut),
-        }
-        let request = self.shared.borrow_mut().request.take();
+            Outcome::Asked(request) => request,
+        };
         Ok(match request {
-            Some(Request::Compute(c)) => GpStep::Busy(self.busy(now, c, None), Busy::Compute),
+            Some(Request::Compute(c)) => {
+                let c = if self.runs_ahead {
+                    self.run_ahead(now, c, limit)
+                } else {
+                    c
+                };
+                GpStep::Busy(self.busy(now, c, None), Busy::Compute)
+            }
             Some(Request::Send(to, payload)) => {
                 let c = Cycles(costs.message_send);
                 let until = self.busy(now, c, Some(Outgoing::new(to, payload)));
@@ -122,6 +230,7 @@ impl GpNode {
                     GpStep::Waiting
                 }
             }
+            Some(Request::Sync) => unreachable!("a look at the present was granted above"),
             None => {
                 // A future returned Pending without a request: it awaited something that is
                 // not the machine's (a program bug the runtime cannot serve).

@@ -132,6 +132,9 @@ impl Machine {
         let gp_clock = clock(cfg.gp.clock_hz, "gp.clock_hz")?;
         let r_clock = clock(cfg.renderer.clock_hz, "renderer.clock_hz")?;
         let fb = (cfg.frame_buffer.width, cfg.frame_buffer.height);
+        // GPs run ahead of the loop through pieces of computing (`gp_node`) unless the run is
+        // recorded: its trace and VCD show each piece.
+        let runs_ahead = !recorder.records();
         let gps: Vec<GpNode> = (0..cfg.gp.count)
             .map(|i| {
                 let gp = Gp {
@@ -146,7 +149,7 @@ impl Machine {
                     frame_buffer: fb,
                     shared: Rc::new(RefCell::new(Shared::default())),
                 };
-                GpNode::new(gp, program, gp_clock)
+                GpNode::new(gp, program, gp_clock, runs_ahead)
             })
             .collect();
         // Pixel work on host threads only when asked for, and never more threads than boards.
@@ -391,7 +394,7 @@ impl Machine {
         if node.state != GpState::Runnable {
             return Ok(false);
         }
-        let step = node.run(self.now, &self.cfg.gp.costs);
+        let step = node.run(self.now, &self.cfg.gp.costs, self.options.max_time);
         self.gp_mark(g as usize);
         self.flush_phases(g);
         match step? {

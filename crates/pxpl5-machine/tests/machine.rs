@@ -625,28 +625,52 @@ fn forever_in_steps(steps: Rc<RefCell<u64>>) -> impl Program {
     })
 }
 
-#[test]
-fn a_stop_asked_now_ends_the_run_at_the_next_look_with_where_it_was() {
+/// A run of `forever_in_steps` with a stop asked before it starts, recorded (a VCD) or not: the
+/// error's time and report, the steps taken, and the time the monitor was told.
+fn stopped_now(recorded: bool) -> (Tick, String, u64, Tick) {
     let steps: Rc<RefCell<u64>> = Rc::default();
     let monitor = Arc::new(Monitor::default());
     monitor.request(Stop::Now);
     let options = RunOptions {
         monitor: Some(monitor.clone()),
         threads: 1,
+        // 1,000 s: ahead of the loop, a GP covers more time an instant than the default 10 s
+        // allow in CHECK_EVERY instants.
+        max_time: Tick(1_000_000_000_000_000),
         ..RunOptions::default()
     };
     let p = forever_in_steps(steps.clone());
-    let r = Machine::new(&minimal(), &p, options, Recorder::new(None, None))
+    let vcd = recorded.then(|| TraceWindow::parse("0..").unwrap());
+    let r = Machine::new(&minimal(), &p, options, Recorder::new(None, vcd))
         .expect("builds")
         .run();
     let Err(RunError::Stopped { at, running }) = r else {
         panic!("expected a stop");
     };
-    // The loop looks at its monitor on its CHECK_EVERY-th instant, after the GPs acted: the
-    // instants were 0, 25 us, ..., (CHECK_EVERY - 1) x 25 us, each but the first ending a step.
+    let taken = *steps.borrow();
+    (at, running, taken, monitor.reached())
+}
+
+#[test]
+fn a_stop_asked_now_ends_the_run_at_the_next_look_with_where_it_was() {
+    // Recorded, the GP computes piece by piece, an instant each. The loop looks at its monitor
+    // on its CHECK_EVERY-th instant, after the GPs acted: the instants were 0, 25 us, ...,
+    // (CHECK_EVERY - 1) x 25 us, each but the first ending a step.
+    let (at, running, steps, reached) = stopped_now(true);
     assert_eq!(at, Tick((CHECK_EVERY - 1) * 25_000_000));
-    assert_eq!(*steps.borrow(), CHECK_EVERY - 1);
-    assert_eq!(monitor.reached(), at);
+    assert_eq!(steps, CHECK_EVERY - 1);
+    assert_eq!(reached, at);
+    assert!(running.contains("GP 0: computing"), "{running}");
+    // Not recorded, the GP runs ahead through many pieces an instant (`gp_node`): the same look
+    // comes later in simulated time, on a 25 us step, with every step up to it taken.
+    let (quiet_at, running, steps, reached) = stopped_now(false);
+    assert!(quiet_at > at, "{quiet_at}");
+    assert_eq!(quiet_at.0 % 25_000_000, 0);
+    assert!(
+        steps >= quiet_at.0 / 25_000_000,
+        "{steps} steps by {quiet_at}"
+    );
+    assert_eq!(reached, quiet_at);
     assert!(running.contains("GP 0: computing"), "{running}");
 }
 
@@ -846,6 +870,123 @@ fn a_refused_command_in_a_message_fails_the_run_when_the_loop_would() {
         gp_first > 0 && board_first > 0,
         "{gp_first} / {board_first}"
     );
+}
+
+// ---------------------------------------------------------------------------------------------
+// GPs ahead of the loop
+// ---------------------------------------------------------------------------------------------
+
+/// GP 1 sends GP 0 eight messages at uneven times; GP 0 computes in small uneven pieces, marks
+/// phases now and then, and after every tenth piece looks at its mailbox, receiving what is
+/// there. It
+/// logs what it sees: the time after each piece and each message taken. With `fail_after`, GP 0
+/// fails after that many pieces, and GP 1 after its fourth send.
+fn ahead_program(log: Rc<RefCell<AheadLog>>, fail_after: Option<u64>) -> impl Program {
+    program("ahead", move |gp| {
+        let log = log.clone();
+        Box::pin(async move {
+            if gp.index() == 1 {
+                for k in 0..8u64 {
+                    if k == 4 && fail_after.is_some() {
+                        return Err(ProgramError("early".into()));
+                    }
+                    gp.compute_cycles(Cycles(300 + 170 * (k % 3))).await;
+                    gp.send(Unit::Gp(0), data(k, 4)).await;
+                }
+                return Ok(());
+            }
+            let (mut got, mut piece) = (0, 0u64);
+            while got < 8 {
+                piece += 1;
+                if fail_after == Some(piece) {
+                    return Err(ProgramError("late".into()));
+                }
+                if piece % 7 == 0 {
+                    gp.phase(if piece % 2 == 0 { "even" } else { "odd" });
+                }
+                gp.compute_cycles(Cycles(13 + piece % 5)).await;
+                log.borrow_mut().push((piece, gp.now()));
+                if piece % 10 == 0 && gp.has_message(|_| true).await {
+                    let m = gp.recv().await;
+                    let Payload::Data { tag, .. } = m.payload else {
+                        panic!("GP 1 sends data");
+                    };
+                    log.borrow_mut().push((1000 + tag, gp.now()));
+                    got += 1;
+                }
+            }
+            Ok(())
+        })
+    })
+}
+
+/// What GP 0 of `ahead_program` saw: each piece's number and the time after it, and each
+/// message's tag (plus 1,000) and the time it was taken.
+type AheadLog = Vec<(u64, Tick)>;
+
+/// `ahead_program`'s run with nothing recorded (GPs run ahead of the loop) and with a VCD
+/// recorded (piece by piece): what it gave (stats or error, as text), what GP 0 logged, and the
+/// loop's instants.
+fn ahead_runs(fail_after: Option<u64>) -> [(String, AheadLog, u64); 2] {
+    [false, true].map(|recorded| {
+        let log: Rc<RefCell<AheadLog>> = Rc::default();
+        let p = ahead_program(log.clone(), fail_after);
+        let vcd = recorded.then(|| TraceWindow::parse("0..").unwrap());
+        let r = run_with(
+            &machine(2, 1, 1),
+            &p,
+            Fidelity::Integer,
+            RunOptions::default().max_time,
+            Recorder::new(None, vcd),
+        );
+        let (text, instants) = match r {
+            Ok(r) => (r.stats.to_json().to_string(), r.host.instants),
+            Err(e) => (e.to_string(), 0),
+        };
+        let seen = log.borrow().clone();
+        (text, seen, instants)
+    })
+}
+
+#[test]
+fn a_gp_ahead_of_the_loop_sees_and_does_what_it_would_piece_by_piece() {
+    let [
+        (quiet, quiet_log, quiet_instants),
+        (recorded, recorded_log, recorded_instants),
+    ] = ahead_runs(None);
+    assert_eq!(quiet, recorded);
+    assert_eq!(quiet_log, recorded_log);
+    // Both phases were marked, every message taken.
+    assert!(
+        quiet.contains("\"even\"") && quiet.contains("\"odd\""),
+        "{quiet}"
+    );
+    assert_eq!(quiet_log.iter().filter(|(k, _)| *k >= 1000).count(), 8);
+    // Most pieces took no instant of their own.
+    let pieces = quiet_log.iter().filter(|(k, _)| *k < 1000).count() as u64;
+    assert!(pieces > 100, "{pieces}");
+    assert!(
+        recorded_instants - quiet_instants > pieces / 2,
+        "{quiet_instants} instants of {recorded_instants}, {pieces} pieces"
+    );
+}
+
+#[test]
+fn a_program_error_ahead_of_the_loop_comes_when_it_would() {
+    // GP 0 fails after its n-th piece, GP 1 after its fourth send: whichever comes first in
+    // simulated time is the run's error, however far ahead of the loop GP 0 is.
+    let (mut late, mut early) = (0, 0);
+    for n in (1..200).step_by(3) {
+        let [(quiet, ..), (recorded, ..)] = ahead_runs(Some(n));
+        assert_eq!(quiet, recorded, "GP 0 failing after {n} pieces");
+        if quiet.contains("late") {
+            late += 1;
+        } else {
+            assert!(quiet.contains("early"), "{quiet}");
+            early += 1;
+        }
+    }
+    assert!(late > 0 && early > 0, "{late} / {early}");
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -652,7 +652,7 @@ pub async fn shoot(
         let m = if drawing.is_empty() {
             gp.phase("waiting");
             Some(gp.recv_where(is_shot_message).await)
-        } else if gp.has_message(is_shot_message) {
+        } else if gp.has_message(is_shot_message).await {
             Some(gp.recv_where(is_shot_message).await)
         } else {
             None
