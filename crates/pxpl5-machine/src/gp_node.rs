@@ -143,9 +143,11 @@ impl GpNode {
     /// (see the module doc). Returns all it asked to compute; what its last poll led to, and the
     /// phases marked in it, are parked for the wake-up at the end.
     ///
-    /// It stops, and parks what was asked, at the run's time `limit` (the loop stops at the
-    /// first wake-up past it, so a program computing forever ends there as it would piece by
-    /// piece) and after [`MAX_AHEAD`] polls (so the loop still looks at the host's stop requests).
+    /// It stops short of polling past the run's time `limit` (the loop stops at the first
+    /// wake-up past it, so a program computing forever ends there as it would piece by piece)
+    /// and after [`MAX_AHEAD`] polls (so the loop still looks at the host's stop requests); the
+    /// program then waits on its last piece, granted at the wake-up as usual, and nothing is
+    /// parked.
     fn run_ahead(&mut self, now: Tick, mut computing: Cycles, limit: Tick) -> Cycles {
         for _ in 0..MAX_AHEAD {
             let at = now + self.clock.to_ticks(computing);
