@@ -17,7 +17,9 @@
 //!
 //! A Renderer's completion that only the board would notice (not its message's last command,
 //! no readback) needs no instant: the board starts its next command at once, at the
-//! completion's time (`Machine::back_to_back` says when, and why that is exact).
+//! completion's time (`Machine::back_to_back` says when, and why that is exact). Nor does a
+//! GP's piece of computing followed by another: its program runs ahead of the loop through
+//! them (`gp_node`). A recorded run keeps both instant by instant, as its trace shows them.
 //!
 //! If every GP waits and nothing is due, the run stops with a deadlock report naming who waits for
 //! what; a limit on simulated time ends runaway runs with an error. Once every `CHECK_EVERY`
@@ -568,10 +570,9 @@ impl Machine {
             self.recorder.message_sent(id, Unit::Renderer(r), self.now);
             self.delivery.sent(id, route, out.payload, sent);
         }
-        let Some(started) = self.renderers[r as usize].start_next(self.now)? else {
+        let Some(mut started) = self.renderers[r as usize].start_next(self.now)? else {
             return Ok(false);
         };
-        let mut started = started;
         // The board's commands back to back, while nothing but the board would act at their
         // completions (see `Machine::back_to_back`).
         loop {
