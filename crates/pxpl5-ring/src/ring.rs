@@ -127,8 +127,8 @@ pub struct Ring {
     /// Clock of each node's latest packet start (for the token-wait statistic).
     last_start: Vec<u64>,
     /// Due events, earliest (clock, sequence number) first: deterministic order within a clock.
-    /// A heap, not a `BTreeMap`: its inserts were 2-4 % of the main job's CPU time by
-    /// `perf record -e cpu-clock`, and the ring only ever takes the earliest.
+    /// A heap, not a `BTreeMap`: the ring only ever takes the earliest, and the heap's push and
+    /// pop took 0.36 % fewer of the main job's hemicube instructions.
     events: BinaryHeap<Reverse<Due>>,
     next_seq: u64,
     /// Messages from acceptance to consumption, by id (`MessageId`s are handed out in order).
