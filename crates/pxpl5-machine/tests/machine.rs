@@ -139,6 +139,26 @@ fn field(offset: u32, bits: u32) -> Field {
     }
 }
 
+/// The `width x height` pixels at `(x, y)`.
+fn rect(x: u32, y: u32, width: u32, height: u32) -> Rect {
+    Rect {
+        x,
+        y,
+        width,
+        height,
+    }
+}
+
+/// A readback of `field` over `rect` to GP 0, tagged `tag`.
+fn readback_to_gp0(field: Field, rect: Rect, tag: u32) -> Command {
+    Command::Readback {
+        field,
+        rect,
+        dest: Unit::Gp(0).encode(),
+        tag,
+    }
+}
+
 fn data(tag: u64, words: u32) -> Payload {
     Payload::Data {
         tag,
@@ -363,18 +383,8 @@ fn renderer_busy_is_the_sum_of_cycle_costs_and_readback_returns_the_values_writt
             value: 0xBEEF,
         },
     ];
-    let rect = Rect {
-        x: 3,
-        y: 5,
-        width: 4,
-        height: 2,
-    };
-    let readback_cmd = Command::Readback {
-        field: field(0, 32),
-        rect,
-        dest: Unit::Gp(0).encode(),
-        tag: 7,
-    };
+    let rect = rect(3, 5, 4, 2);
+    let readback_cmd = readback_to_gp0(field(0, 32), rect, 7);
     let got: Rc<RefCell<Option<(Message, Tick)>>> = Rc::default();
     let (w2, rb2, got2) = (writes.clone(), readback_cmd.clone(), got.clone());
     let p = program("readback", move |gp| {
@@ -767,18 +777,7 @@ fn back_to_back_program() -> impl Program {
                     .collect();
                 gp.send_commands(m % 2, commands).await;
                 if m == 3 || m == 4 {
-                    let rect = Rect {
-                        x: 0,
-                        y: 0,
-                        width: 4,
-                        height: 1,
-                    };
-                    let readback = Command::Readback {
-                        field: field(0, 16),
-                        rect,
-                        dest: Unit::Gp(0).encode(),
-                        tag: m,
-                    };
+                    let readback = readback_to_gp0(field(0, 16), rect(0, 0, 4, 1), m);
                     gp.send_commands(m % 2, vec![readback]).await;
                     gp.recv().await;
                 }
