@@ -40,8 +40,9 @@
 //! the half-planes' intersection. Where a region has an ellipse, the box's rows are taken in
 //! bands halved down to a few rows, each narrowed to the columns every conjunct's region may
 //! meet over the band (bounded in f64 with a margin for every rounding), and a band with none
-//! left is not solved. Materialising a flag replays its layers in order, as the
-//! commands would have.
+//! left is not solved. Materialising a flag gives each pixel the value of the newest layer whose
+//! gate holds it, as the commands would have, solving each epoch's layers only where no newer
+//! epoch's wrote.
 //! Both are exact: a row or column is left out only where a conjunct is false at every pixel of
 //! it, and every row is solved from the same expressions by the same row solver as `integer`'s
 //! (`integer::sign_row`).
@@ -607,21 +608,54 @@ impl SparseEngine {
         }
     }
 
-    /// Flag f with its layers replayed in order, each where its gate holds.
+    /// Flag f with its layers replayed: each pixel takes the value of the newest layer whose
+    /// gate holds it, or keeps the materialised plane's. Row by row, the newest epoch's layers
+    /// first, each epoch's solved only on the pixels no newer epoch's layer wrote: its layers'
+    /// gates are its base, less those pixels, ANDed with their conjuncts.
+    ///
+    /// Replayed oldest first, each on its whole gate, the radiosity program's layers cost 12 %
+    /// of `bench renderer`'s hemisphere stream (45.07 M instructions; 42.03 M this way), for
+    /// five materialisations: a receiver whose first edge is vertical (C = 0, no `inside` test)
+    /// writes its `inside` layers after a conjunct, which the next receiver's do not provably
+    /// cover (`push_layer`), so they pile up, each gated by most of the disk.
     fn flag_plane(&self, f: usize) -> Vec<u64> {
         let mut plane = self.inner.registers().flags[f].clone();
         let layers = &self.layers[f];
+        if layers.is_empty() {
+            return plane;
+        }
         let g = self.geometry;
         let gpr = g.groups_per_row;
+        // Each epoch's layers are consecutive, their k ascending; each run keeps its row
+        // solver's hints from row to row.
+        let runs: Vec<&[Layer]> = layers.chunk_by(|a, b| a.epoch == b.epoch).collect();
+        let mut solvers: Vec<Rows<Vec<u64>>> = runs
+            .iter()
+            .map(|run| Rows::new(self.epoch(run[0].epoch), g, vec![0u64; gpr]))
+            .collect();
         let mut gate = vec![0u64; gpr];
-        // Each epoch's layers are consecutive, their k ascending.
-        for run in layers.chunk_by(|a, b| a.epoch == b.epoch) {
-            let ep = self.epoch(run[0].epoch);
-            let mut rows = Rows::new(ep, g, vec![0u64; gpr]);
-            for (py, out) in plane.chunks_exact_mut(gpr).enumerate() {
-                gate.copy_from_slice(&ep.base[py * gpr..py * gpr + gpr]);
+        // The pixels of the row a newer epoch's layer wrote.
+        let mut written = vec![0u64; gpr];
+        let newest = runs.len() - 1;
+        for (py, out) in plane.chunks_exact_mut(gpr).enumerate() {
+            for (r, (run, rows)) in runs.iter().zip(&mut solvers).enumerate().rev() {
+                let ep = self.epoch(run[0].epoch);
+                let base = &ep.base[py * gpr..py * gpr + gpr];
+                if r == newest {
+                    // Nothing newer wrote: `written` starts here, and only with older epochs.
+                    gate.copy_from_slice(base);
+                    if r > 0 {
+                        written.fill(0);
+                    }
+                } else {
+                    for ((m, &b), &w) in gate.iter_mut().zip(base).zip(&written) {
+                        *m = b & !w;
+                    }
+                }
+                // Within the run, oldest first: a later layer's gate lies inside an earlier's,
+                // and the first's holds every pixel the run writes.
                 let mut applied = 0;
-                for layer in run {
+                for (i, layer) in run.iter().enumerate() {
                     while applied < layer.k as usize && gate.iter().any(|&w| w != 0) {
                         let v = rows.value(ep.conj[applied], py, &gate);
                         for (m, &v) in gate.iter_mut().zip(v) {
@@ -629,9 +663,15 @@ impl SparseEngine {
                         }
                         applied += 1;
                     }
-                    // A later layer's gate lies inside this one's.
                     if gate.iter().all(|&w| w == 0) {
                         break;
+                    }
+                    // The oldest epoch's writes hide nothing (a flag's layers are most often one
+                    // epoch's).
+                    if i == 0 && r > 0 {
+                        for (w, &m) in written.iter_mut().zip(&gate) {
+                            *w |= m;
+                        }
                     }
                     let v = rows.value(layer.value, py, &gate);
                     for ((o, &m), &v) in out.iter_mut().zip(gate.iter()).zip(v) {
