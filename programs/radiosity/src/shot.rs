@@ -508,6 +508,17 @@ struct IdSums {
 }
 
 impl IdSums {
+    /// Sums with room for IDs up to `max` (the largest receiver's): grown ID by ID as bands
+    /// came, the sums of a hemicube shot were reallocated about 300 times (0.9 % of 150 shots'
+    /// instructions in the main job's hemicube).
+    fn with_ids(max: u16) -> IdSums {
+        let n = usize::from(max) + 1;
+        IdSums {
+            sums: Vec::with_capacity(n),
+            seen: Vec::with_capacity(n),
+        }
+    }
+
     /// `sums[id] += f` for each pixel's ID and value in order, from 0 for an ID not seen yet;
     /// ID 0 (no receiver) is skipped. A run of pixels of one ID is summed in a register and
     /// stored once: the same additions in the same order, so the same sums, without each
@@ -624,7 +635,8 @@ pub async fn shoot(
     let mut left = Left::new(&views, s.gps, g);
     // Sums per view, added up in view order at the end, so the result does not depend on the
     // order the schedule delivers the bands in (floating-point sums are not associative).
-    let mut by_view = vec![IdSums::default(); views.len()];
+    let max_id = receivers.iter().map(|r| r.id).max().unwrap_or(0);
+    let mut by_view: Vec<IdSums> = (0..views.len()).map(|_| IdSums::with_ids(max_id)).collect();
     // The IDs of the readback message being summed, one buffer for all of them.
     let mut ids = Vec::new();
     let mut coordinator = (g == 0).then(|| Coordinator::new(views.len(), renderers, s.gps));
