@@ -626,29 +626,31 @@ impl SparseEngine {
         }
         let g = self.geometry;
         let gpr = g.groups_per_row;
-        // Each epoch's layers are consecutive, their k ascending; each run keeps its row
-        // solver's hints from row to row.
+        // Each epoch's layers are consecutive, their k ascending.
         let runs: Vec<&[Layer]> = layers.chunk_by(|a, b| a.epoch == b.epoch).collect();
-        let mut solvers: Vec<Rows<Vec<u64>>> = runs
-            .iter()
-            .map(|run| Rows::new(self.epoch(run[0].epoch), g, vec![0u64; gpr]))
-            .collect();
         let mut gate = vec![0u64; gpr];
-        // The pixels of the row a newer epoch's layer wrote.
-        let mut written = vec![0u64; gpr];
+        // The pixels a newer epoch's layer wrote: needed only with an older epoch left (a
+        // flag's layers are most often one epoch's, which the loop below then replays as it
+        // always did).
+        let mut written = if runs.len() > 1 {
+            vec![0u64; plane.len()]
+        } else {
+            Vec::new()
+        };
         let newest = runs.len() - 1;
-        for (py, out) in plane.chunks_exact_mut(gpr).enumerate() {
-            for (r, (run, rows)) in runs.iter().zip(&mut solvers).enumerate().rev() {
-                let ep = self.epoch(run[0].epoch);
-                let base = &ep.base[py * gpr..py * gpr + gpr];
+        for (r, run) in runs.iter().enumerate().rev() {
+            let ep = self.epoch(run[0].epoch);
+            let mut rows = Rows::new(ep, g, vec![0u64; gpr]);
+            for (py, out) in plane.chunks_exact_mut(gpr).enumerate() {
+                let at = py * gpr..py * gpr + gpr;
                 if r == newest {
-                    // Nothing newer wrote: `written` starts here, and only with older epochs.
-                    gate.copy_from_slice(base);
-                    if r > 0 {
-                        written.fill(0);
-                    }
+                    gate.copy_from_slice(&ep.base[at.clone()]);
                 } else {
-                    for ((m, &b), &w) in gate.iter_mut().zip(base).zip(&written) {
+                    for ((m, &b), &w) in gate
+                        .iter_mut()
+                        .zip(&ep.base[at.clone()])
+                        .zip(&written[at.clone()])
+                    {
                         *m = b & !w;
                     }
                 }
@@ -666,10 +668,9 @@ impl SparseEngine {
                     if gate.iter().all(|&w| w == 0) {
                         break;
                     }
-                    // The oldest epoch's writes hide nothing (a flag's layers are most often one
-                    // epoch's).
+                    // The oldest epoch's writes hide nothing older.
                     if i == 0 && r > 0 {
-                        for (w, &m) in written.iter_mut().zip(&gate) {
+                        for (w, &m) in written[at.clone()].iter_mut().zip(&gate) {
                             *w |= m;
                         }
                     }
