@@ -609,12 +609,12 @@ impl SparseEngine {
     }
 
     /// Flag f with its layers replayed: each pixel takes the value of the newest layer whose
-    /// gate holds it, or keeps the materialised plane's. Row by row, the newest epoch's layers
-    /// first, each epoch's solved only on the pixels no newer epoch's layer wrote: its layers'
-    /// gates are its base, less those pixels, ANDed with their conjuncts.
+    /// gate holds it, or keeps the materialised plane's. Epoch by epoch, newest first, each
+    /// epoch's layers replayed in order on the pixels no newer epoch's layer wrote: their gates
+    /// are its base, less those pixels, ANDed with their conjuncts.
     ///
     /// Replayed oldest first, each on its whole gate, the radiosity program's layers cost 12 %
-    /// of `bench renderer`'s hemisphere stream (45.07 M instructions; 42.03 M this way), for
+    /// of `bench renderer`'s hemisphere stream (45.07 M instructions; 42.09 M this way), for
     /// five materialisations: a receiver whose first edge is vertical (C = 0, no `inside` test)
     /// writes its `inside` layers after a conjunct, which the next receiver's do not provably
     /// cover (`push_layer`), so they pile up, each gated by most of the disk.
