@@ -509,8 +509,8 @@ struct IdSums {
 
 impl IdSums {
     /// Sums with room for IDs up to `max` (the largest receiver's): grown ID by ID as bands
-    /// came, the sums of a hemicube shot were reallocated about 300 times (0.9 % of 150 shots'
-    /// instructions in the main job's hemicube).
+    /// came, the sums of a hemicube shot were reallocated about 300 times (2.1 M of the 1,418.6
+    /// M instructions of the main job's hemicube over 40 shots).
     fn with_ids(max: u16) -> IdSums {
         let n = usize::from(max) + 1;
         IdSums {
