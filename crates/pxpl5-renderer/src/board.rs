@@ -16,13 +16,13 @@ use pxpl5_sim::Cycles;
 use sha2::{Digest, Sha256};
 use thiserror::Error;
 
-use crate::command::{Bit, Command, Field, Rect};
+use crate::command::{Bit, Command, Field, LogicOp, Rect};
 use crate::cycles::{backing_store_blocks, backing_store_cycles, cycle_cost};
 use crate::engine::bit::BitEngine;
 use crate::engine::integer::IntegerEngine;
 use crate::engine::sparse::SparseEngine;
-use crate::engine::{Geometry, PixelEngine, QeeSink, Registers};
-use crate::qee::{COEFFICIENT_NAMES, Streams};
+use crate::engine::{DepthTest, Geometry, PixelEngine, QeeSink, Registers};
+use crate::qee::{COEFFICIENT_NAMES, QeeExpr, Streams, Window};
 use crate::readback::{ReadbackMessage, pack_messages};
 use crate::workers::{Remote, Workers};
 
@@ -331,6 +331,26 @@ pub(crate) struct Pixels {
     enabled_superset: bool,
     all_groups: Vec<u32>,
     streams: Streams,
+    /// A depth test [`Pixels::apply`] holds back to run as one pass.
+    held: Option<Held>,
+}
+
+/// The start of a receiver's depth test, held back: its `QeeCompare` into enable by AND, and
+/// whether the same expression's `QeeStore` into the compared field followed it.
+struct Held {
+    compare: Command,
+    store: bool,
+}
+
+impl Held {
+    /// Whether a `QeeStore` of `expr`'s `window` into `dst` stores what the compare compared.
+    fn stored_by(&self, expr: &QeeExpr, window: Window, dst: Field) -> bool {
+        matches!(
+            self.compare,
+            Command::QeeCompare { expr: e, window: w, field, .. }
+                if e == *expr && w == window && field == dst
+        )
+    }
 }
 
 impl Board {
@@ -368,7 +388,8 @@ impl Board {
             enabled_valid: false,
             enabled_superset: false,
             all_groups: (0..geometry.groups as u32).collect(),
-            streams: Streams::new(&crate::QeeExpr::default(), (0, 0), 0, 0),
+            streams: Streams::new(&QeeExpr::default(), (0, 0), 0, 0),
+            held: None,
         };
         Board::keeping_time(cfg, Side::Here(Box::new(pixels)))
     }
@@ -667,9 +688,10 @@ impl Board {
         Ok(())
     }
 
-    /// The board's state in the canonical form both fidelity levels share.
-    pub fn image(&self) -> BoardImage {
-        match &self.pixels {
+    /// The board's state in the canonical form both fidelity levels share. `&mut`: the pixel
+    /// work a level holds back ([`Pixels::apply`]) runs first.
+    pub fn image(&mut self) -> BoardImage {
+        match &mut self.pixels {
             Side::Here(p) => p.image(),
             Side::Away(r) => r.image(),
             Side::Blank(b) => b.image(),
@@ -677,8 +699,8 @@ impl Board {
     }
 
     /// Raw values of a field over the whole array, row by row (for tests and pictures).
-    pub fn field_values(&self, field: Field) -> Vec<u64> {
-        match &self.pixels {
+    pub fn field_values(&mut self, field: Field) -> Vec<u64> {
+        match &mut self.pixels {
             Side::Here(p) => p.field_values(field),
             Side::Away(r) => r.field_values(field),
             Side::Blank(b) => vec![0; b.pixels()],
@@ -686,8 +708,8 @@ impl Board {
     }
 
     /// One one-bit register of every pixel, row by row.
-    pub fn bit_values(&self, b: Bit) -> Vec<bool> {
-        match &self.pixels {
+    pub fn bit_values(&mut self, b: Bit) -> Vec<bool> {
+        match &mut self.pixels {
             Side::Here(p) => p.bit_values(b),
             Side::Away(r) => r.bit_values(b),
             Side::Blank(blank) => blank.bit_values(b),
@@ -697,7 +719,87 @@ impl Board {
 
 impl Pixels {
     /// The pixel (or board-state) effect of a validated command, and the messages of a readback.
+    ///
+    /// At the `integer` and `sparse` levels a receiver's depth test (a `QeeCompare` into enable
+    /// by AND, then the same expression's `QeeStore` into the compared field, then a
+    /// `WriteConst`) is held back until its last command arrives or another does, and then runs
+    /// as one [`PixelEngine::depth_test`]: host work only, since a board's time never depends on
+    /// its pixels and every look at them ([`Pixels::settle`]) runs what is held first.
     pub(crate) fn apply(&mut self, cmd: &Command) -> Option<ReadbackStream> {
+        if let Some(mut held) = self.held.take() {
+            match *cmd {
+                Command::QeeStore {
+                    ref expr,
+                    window,
+                    dst,
+                } if !held.store && held.stored_by(expr, window, dst) => {
+                    held.store = true;
+                    self.held = Some(held);
+                    return None;
+                }
+                Command::WriteConst { dst, value } => {
+                    self.depth_test(&held, Some((dst, value)));
+                    return None;
+                }
+                _ => self.depth_test(&held, None),
+            }
+        }
+        let holds = matches!(self.engine, Engine::Integer(_) | Engine::Sparse(_))
+            && matches!(
+                *cmd,
+                Command::QeeCompare {
+                    dst: Bit::Enable,
+                    combine: LogicOp::AND,
+                    ..
+                }
+            );
+        if holds {
+            self.held = Some(Held {
+                compare: cmd.clone(),
+                store: false,
+            });
+            return None;
+        }
+        self.apply_now(cmd)
+    }
+
+    /// Run what [`Pixels::apply`] holds back, if anything: before any look at the pixels.
+    pub(crate) fn settle(&mut self) {
+        if let Some(held) = self.held.take() {
+            self.depth_test(&held, None);
+        }
+    }
+
+    /// The held depth test, its compare's `WriteConst` `id` included if any.
+    fn depth_test(&mut self, held: &Held, id: Option<(Field, u64)>) {
+        let Command::QeeCompare {
+            window, field, cmp, ..
+        } = held.compare
+        else {
+            unreachable!("only a QeeCompare is held");
+        };
+        // The compare's preparation, as if it ran alone; no level defers a compare.
+        let every_group = self.prepare(&held.compare);
+        debug_assert_eq!(
+            every_group,
+            Some(false),
+            "a compare by AND lists its groups"
+        );
+        let test = DepthTest {
+            field,
+            cmp,
+            store: held.store,
+            id,
+        };
+        let engine = self.engine.get_mut();
+        engine.depth_test(&self.streams, window, test, &self.enabled);
+    }
+
+    /// What every command needs before its pixel work: the sparse level's deferral (`None`: the
+    /// command is deferred, nothing more to do) and materialisation, the list of enabled groups
+    /// brought up to date if the command needs it, and the QEE's streams set to its expression.
+    /// `Some(every_group)`: whether the command works on every group rather than the listed ones.
+    fn prepare(&mut self, cmd: &Command) -> Option<bool> {
         // The sparse level defers what it can and materialises what the rest reads; a changed
         // enable makes the list of enabled groups stale.
         if let Engine::Sparse(e) = &mut self.engine {
@@ -757,6 +859,12 @@ impl Pixels {
                 Engine::Integer(_) | Engine::Sparse(_) => self.streams.set_expr(expr, self.origin),
             }
         }
+        Some(every_group)
+    }
+
+    /// A command applied at once.
+    fn apply_now(&mut self, cmd: &Command) -> Option<ReadbackStream> {
+        let every_group = self.prepare(cmd)?;
         let active = if every_group {
             &self.all_groups[..]
         } else {
@@ -879,7 +987,8 @@ impl Pixels {
     }
 
     /// The board's state in the canonical form both fidelity levels share.
-    pub(crate) fn image(&self) -> BoardImage {
+    pub(crate) fn image(&mut self) -> BoardImage {
+        self.settle();
         let e = self.engine.get();
         let memory = e.read_planes(Field {
             offset: 0,
@@ -908,7 +1017,8 @@ impl Pixels {
     }
 
     /// Raw values of a field over the whole array, row by row (for tests and pictures).
-    pub(crate) fn field_values(&self, field: Field) -> Vec<u64> {
+    pub(crate) fn field_values(&mut self, field: Field) -> Vec<u64> {
+        self.settle();
         let rect = Rect {
             x: 0,
             y: 0,
@@ -919,7 +1029,8 @@ impl Pixels {
     }
 
     /// One one-bit register of every pixel, row by row.
-    pub(crate) fn bit_values(&self, b: Bit) -> Vec<bool> {
+    pub(crate) fn bit_values(&mut self, b: Bit) -> Vec<bool> {
+        self.settle();
         let regs = self.registers();
         (0..self.geometry.groups * 64)
             .map(|p| (regs.get(b, p / 64) >> (p % 64)) & 1 != 0)
@@ -928,7 +1039,7 @@ impl Pixels {
 }
 
 /// Which writes to enable a command makes: `Some(op)` when it combines into enable by `op`.
-fn enable_write(dst: Bit, combine: crate::LogicOp) -> Option<crate::LogicOp> {
+fn enable_write(dst: Bit, combine: LogicOp) -> Option<LogicOp> {
     match dst {
         Bit::Enable => Some(combine),
         Bit::Flag(_) => None,

@@ -90,7 +90,7 @@ const W: usize = 128;
 #[test]
 fn logic_is_one_cycle_plus_overhead() {
     let setup = [left_half()];
-    let b = check(
+    let mut b = check(
         &setup,
         Command::Logic {
             dst: Bit::Flag(2),
@@ -104,19 +104,19 @@ fn logic_is_one_cycle_plus_overhead() {
     // Gated: written only where enabled, and there it is 1.
     assert!(f[5] && !f[100] && f[W * 77 + 63] && !f[W * 77 + 64]);
     // Writing enable itself is not gated.
-    let b = check(&setup, Command::enable_all(), 21);
+    let mut b = check(&setup, Command::enable_all(), 21);
     assert!(b.bit_values(Bit::Enable).iter().all(|&e| e));
 }
 
 #[test]
 fn qee_sign_costs_latency_plus_window() {
     // 12-bit window, linear: 20 + 8 + 12.
-    let b = check(&[], left_half(), 40);
+    let mut b = check(&[], left_half(), 40);
     let e = b.bit_values(Bit::Enable);
     assert!(e[0] && e[63] && !e[64] && !e[127] && e[W * 127 + 10]);
     // A quadratic costs the same with quadratic_extra_cycles = 0 [lineage].
     let circle = QeeExpr::from_raw([128, 128, -(64 * 64 * 2 - 40 * 40), -1, 0, -1]);
-    let b = check(
+    let mut b = check(
         &[],
         Command::QeeSign {
             expr: circle,
@@ -140,7 +140,7 @@ fn qee_store_add_and_compare() {
     let expr = QeeExpr::from_raw([3, -5, 1000, 0, 1, 0]);
     let win = Window { shift: 2, bits: 20 };
     let setup = [left_half(), Command::SetOrigin { x: 100, y: 200 }];
-    let b = check(
+    let mut b = check(
         &setup,
         Command::QeeStore {
             expr,
@@ -161,7 +161,7 @@ fn qee_store_add_and_compare() {
     };
     let mut s2 = setup.to_vec();
     s2.push(store.clone());
-    let b = check(
+    let mut b = check(
         &s2,
         Command::QeeAdd {
             expr,
@@ -174,7 +174,7 @@ fn qee_store_add_and_compare() {
 
     // Compare the stored value against an expression one larger: strictly greater everywhere.
     let bigger = QeeExpr { c: 1004, ..expr };
-    let b = check(
+    let mut b = check(
         &s2,
         Command::QeeCompare {
             expr: bigger,
@@ -200,13 +200,13 @@ fn field_arithmetic() {
         },
         Command::WriteConst { dst: b, value: 700 },
     ];
-    let board = check(&setup, Command::Add { dst: d, a, b }, 20 + 1 + 10);
+    let mut board = check(&setup, Command::Add { dst: d, a, b }, 20 + 1 + 10);
     assert_eq!(board.field_values(d)[0], 684);
-    let board = check(&setup, Command::Sub { dst: d, a, b }, 20 + 1 + 10);
+    let mut board = check(&setup, Command::Sub { dst: d, a, b }, 20 + 1 + 10);
     assert_eq!(board.field_values(d)[0], (-716i64 as u64) & 0x3FF);
-    let board = check(&setup, Command::Copy { dst: d, src: a }, 20 + 10);
+    let mut board = check(&setup, Command::Copy { dst: d, src: a }, 20 + 10);
     assert_eq!(board.field_values(d)[0], 0x3F0, "sign-extended");
-    let board = check(
+    let mut board = check(
         &setup,
         Command::MulConst {
             dst: d,
@@ -217,7 +217,7 @@ fn field_arithmetic() {
         20 + 8 * 3,
     );
     assert_eq!(board.field_values(d)[0], 48);
-    let board = check(&setup, Command::WriteConst { dst: d, value: 513 }, 20 + 10);
+    let mut board = check(&setup, Command::WriteConst { dst: d, value: 513 }, 20 + 10);
     assert_eq!(board.field_values(d)[W * W - 1], 513);
 }
 
@@ -231,7 +231,7 @@ fn compare_is_exact_across_widths_and_signedness() {
         ];
         let x = ((va as i64) << 56) >> 56;
         for cmp in Cmp::ALL {
-            let board = check(
+            let mut board = check(
                 &setup,
                 Command::Compare {
                     a,
@@ -458,7 +458,7 @@ fn write_pixels_fills_a_rectangle_ungated() {
     };
     let values: Vec<u64> = (0..16).map(|i| 1000 * i + 7).collect();
     // Enable covers only x < 64: the write is not gated, so x >= 64 is written too.
-    let b = check(
+    let mut b = check(
         &[left_half()],
         Command::WritePixels {
             dst: f,

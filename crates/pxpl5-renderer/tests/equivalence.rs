@@ -413,6 +413,123 @@ proptest! {
     }
 }
 
+/// Receivers' depth tests, which the `integer` and `sparse` levels hold back and run as one pass
+/// over the groups: sign tests into enable, a compare of a QEE expression with a field into
+/// enable by AND, then usually the same expression's store into that field and a constant (an
+/// ID, into any of the fields: beside the depth, across limbs, over the depth itself); now and
+/// then a store that does not match (another expression, or another window), or any command at
+/// all, between them.
+fn depth_tests() -> impl Strategy<Value = Vec<Command>> {
+    let depth = (0..FIELDS.len(), expr(), 0u32..8, cmp()).prop_map(|(i, expr, shift, cmp)| {
+        let (offset, bits, signed) = FIELDS[i];
+        let window = Window {
+            shift: shift.min(64 - bits),
+            bits,
+        };
+        (
+            expr,
+            window,
+            Field {
+                offset,
+                bits,
+                signed,
+            },
+            cmp,
+        )
+    });
+    let edges = prop::collection::vec(expr(), 0..3);
+    let id = prop::option::of((0..FIELDS.len(), any::<u64>()));
+    let receiver = (
+        depth,
+        edges,
+        0u8..6,
+        expr(),
+        id,
+        prop::option::of(command()),
+    )
+        .prop_map(
+            |((expr, window, field, cmp), edges, store, other, id, between)| {
+                let mut v = vec![Command::enable_all()];
+                for e in edges {
+                    let window = e.sign_window((0, 0), 512, 512);
+                    if window.bits <= 64 {
+                        v.push(Command::QeeSign {
+                            expr: e,
+                            window,
+                            dst: Bit::Enable,
+                            combine: LogicOp::AND,
+                        });
+                    }
+                }
+                v.push(Command::QeeCompare {
+                    expr,
+                    window,
+                    field,
+                    cmp,
+                    dst: Bit::Enable,
+                    combine: LogicOp::AND,
+                });
+                match store {
+                    0 => {}
+                    1 => v.push(Command::QeeStore {
+                        expr: other,
+                        window,
+                        dst: field,
+                    }),
+                    2 => v.push(Command::QeeStore {
+                        expr,
+                        window: Window {
+                            shift: window.shift ^ 1,
+                            ..window
+                        },
+                        dst: field,
+                    }),
+                    _ => v.push(Command::QeeStore {
+                        expr,
+                        window,
+                        dst: field,
+                    }),
+                }
+                if let Some(c) = between {
+                    v.push(c);
+                }
+                if let Some((i, value)) = id {
+                    let (offset, bits, signed) = FIELDS[i];
+                    let value = value & pxpl5_renderer::qee::mask(bits);
+                    v.push(Command::WriteConst {
+                        dst: Field {
+                            offset,
+                            bits,
+                            signed,
+                        },
+                        value,
+                    });
+                }
+                v
+            },
+        );
+    let receivers = prop::collection::vec(
+        prop_oneof![4 => receiver.prop_map(|r| r), 1 => command().prop_map(|c| vec![c])],
+        1..10,
+    );
+    from_an_origin(receivers.prop_map(|r| r.concat()))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, ..ProptestConfig::default() })]
+
+    #[test]
+    fn the_levels_agree_on_depth_tests(commands in depth_tests()) {
+        run_both(&small(), &commands)?;
+    }
+
+    /// Every look at the pixels runs the depth test held back: compared after every command.
+    #[test]
+    fn sparse_follows_integer_on_depth_tests(commands in depth_tests()) {
+        sparse_follows_integer(&small(), &commands)?;
+    }
+}
+
 /// Sign tests alone, many of them: the integer level solves them per row span (monotone pieces,
 /// binary search, per-pixel fallback where the window could wrap), the bit level pixel by pixel.
 fn sign_tests() -> impl Strategy<Value = Vec<Command>> {

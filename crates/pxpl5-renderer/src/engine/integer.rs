@@ -10,7 +10,7 @@
 //! when the engine is made, as the `bit` level's QEE loops are; a test holds both to the same
 //! values.
 
-use super::{Geometry, PixelEngine, QeeSink, Registers, extend, gated, value_of};
+use super::{DepthTest, Geometry, PixelEngine, QeeSink, Registers, extend, gated, value_of};
 use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
 use crate::qee::{RowFn, Streams, Window, mask};
 
@@ -580,22 +580,104 @@ impl IntegerEngine {
         if a.straddles() {
             return self.update(dst, active, |_, _| value);
         }
-        // A field inside one limb: each run of enabled pixels in one branch-free pass that the
-        // compiler vectorises. A polygon's ID is written at every pixel it covers, and a convex
-        // polygon meets a group's 64 pixels in one run: a loop per pixel (a mask per pixel, or a
-        // visit per set bit) cost 1.18 G instructions of a hemicube run, 6.4 % of it.
-        let (clear, set) = (!(a.mask << a.shift), (value & a.mask) << a.shift);
+        // A field inside one limb: `const_group`.
         let limb = &mut self.limbs[a.limb];
         for &g in active {
             let g = g as usize;
-            let pixels = &mut limb[g * 64..g * 64 + 64];
-            for_each_run(self.regs.enable[g], |lo, hi| {
-                for w in &mut pixels[lo..hi] {
-                    *w = (*w & clear) | set;
-                }
-            });
+            const_group(
+                &mut limb[g * 64..g * 64 + 64],
+                self.regs.enable[g],
+                (a, value),
+            );
         }
     }
+
+    /// `PixelEngine::depth_test`, inlined into each build `Groups` dispatches: a group's
+    /// compare, store and constant write one after the other, so each group is visited once
+    /// (its row's V, its enable word and its words found once) where three commands visit it
+    /// three times and list the enabled groups again between them. Fields that straddle two
+    /// limbs, or a compare with a side of 64 bits, take the commands one by one.
+    #[inline(always)]
+    fn depth_test_groups(&mut self, s: &Streams, window: Window, test: DepthTest, active: &[u32]) {
+        let DepthTest {
+            field,
+            cmp,
+            store,
+            id,
+        } = test;
+        let a = Access::of(field);
+        let id = id.map(|(dst, value)| (Access::of(dst), value));
+        if a.straddles()
+            || field.bits >= 64
+            || window.bits >= 64
+            || id.is_some_and(|(i, _)| i.straddles())
+        {
+            let compare = QeeSink::Compare {
+                field,
+                cmp,
+                dst: Bit::Enable,
+                combine: LogicOp::AND,
+            };
+            self.qee_groups(s, window, compare, active);
+            if store {
+                self.qee_groups(s, window, QeeSink::Store { dst: field }, active);
+            }
+            if let Some((dst, value)) = test.id {
+                self.write_const_groups(dst, value, active);
+            }
+            return;
+        }
+        // As `qee_groups`' compare: each side as a key whose order is its value's.
+        let key = if field.signed { 64 - field.bits } else { 0 };
+        let gpr = self.geometry.groups_per_row;
+        for &g in active {
+            let g = g as usize;
+            let en = self.regs.enable[g];
+            if en == 0 {
+                continue;
+            }
+            let (py, px0) = (g / gpr, (g % gpr) * 64);
+            let v = s.row_fn(py);
+            let base = g * 64;
+            let words = &self.limbs[a.limb][base..base + 64];
+            let (lt, eq) = match linear_in_group(v, px0) {
+                Some(at) => compare_group::<true>(words, en, (a, window, key), at),
+                None => {
+                    compare_group::<false>(words, en, (a, window, key), |i| v.at(px0 + i as usize))
+                }
+            };
+            // enable AND the comparison: a disabled pixel stays disabled.
+            let en = en & cmp.from_lt_eq(lt, eq);
+            self.regs.enable[g] = en;
+            if store {
+                let words = &mut self.limbs[a.limb][base..base + 64];
+                match linear_in_group(v, px0) {
+                    Some(at) => store_group::<true>(words, en, (a, window), at),
+                    None => {
+                        store_group::<false>(words, en, (a, window), |i| v.at(px0 + i as usize))
+                    }
+                }
+            }
+            if let Some((i, value)) = id {
+                const_group(&mut self.limbs[i.limb][base..base + 64], en, (i, value));
+            }
+        }
+    }
+}
+
+/// A constant written at the enabled pixels `en` of one group's 64 words, into a field inside
+/// one limb: each run of enabled pixels in one branch-free pass that the compiler vectorises. A
+/// polygon's ID is written at every pixel it covers, and a convex polygon meets a group's 64
+/// pixels in one run: a loop per pixel (a mask per pixel, or a visit per set bit) cost 1.18 G
+/// instructions of a hemicube run, 6.4 % of it.
+#[inline(always)]
+fn const_group(pixels: &mut [u64], en: u64, (a, value): (Access, u64)) {
+    let (clear, set) = (!(a.mask << a.shift), (value & a.mask) << a.shift);
+    for_each_run(en, |lo, hi| {
+        for w in &mut pixels[lo..hi] {
+            *w = (*w & clear) | set;
+        }
+    });
 }
 
 /// Per-group work whose loops are compiled once per instruction set [`pulp::Arch::dispatch`]
@@ -616,6 +698,11 @@ enum Work<'a> {
         dst: Field,
         value: u64,
     },
+    DepthTest {
+        s: &'a Streams,
+        window: Window,
+        test: DepthTest,
+    },
 }
 
 impl pulp::WithSimd for Groups<'_> {
@@ -631,6 +718,9 @@ impl pulp::WithSimd for Groups<'_> {
         match work {
             Work::Qee { s, window, sink } => engine.qee_groups(s, window, sink, active),
             Work::Const { dst, value } => engine.write_const_groups(dst, value, active),
+            Work::DepthTest { s, window, test } => {
+                engine.depth_test_groups(s, window, test, active)
+            }
         }
     }
 }
@@ -768,6 +858,15 @@ impl PixelEngine for IntegerEngine {
             engine: self,
             active,
             work: Work::Const { dst, value },
+        })
+    }
+
+    fn depth_test(&mut self, s: &Streams, window: Window, test: DepthTest, active: &[u32]) {
+        let arch = self.arch;
+        arch.dispatch(Groups {
+            engine: self,
+            active,
+            work: Work::DepthTest { s, window, test },
         })
     }
 
@@ -982,6 +1081,111 @@ mod tests {
                     v3.limbs == portable.limbs && v3.regs == portable.regs,
                     "{width} x {height}, trial {trial}: {sink:?} differs"
                 );
+            }
+        }
+    }
+
+    /// `depth_test`'s one pass over the groups leaves what its three commands leave one after
+    /// the other, in the v3 build and the portable one: depths inside one limb and across two,
+    /// signed and unsigned, 64 bits wide (the commands one by one), every comparison, with and
+    /// without the store, and IDs beside the depth, across limbs or over the depth's own bits.
+    #[test]
+    fn a_depth_test_is_its_three_commands() {
+        use super::{DepthTest, Geometry, IntegerEngine, PixelEngine, QeeSink};
+        use crate::QeeExpr;
+        use crate::command::{Bit, Cmp, Field, LogicOp};
+        use crate::qee::{Streams, Window};
+        let mut rng = pxpl5_geom::rng::Lcg::new(0xDE97_4E57);
+        let field = |offset, bits, signed| Field {
+            offset,
+            bits,
+            signed,
+        };
+        let depths = [
+            field(20, 12, false),
+            field(20, 12, true),
+            field(58, 12, true),
+            field(64, 32, false),
+            field(100, 64, true),
+        ];
+        let ids = [
+            None,
+            Some(field(40, 16, false)),
+            Some(field(120, 16, false)),
+            Some(field(56, 16, false)),
+            Some(field(24, 4, false)),
+        ];
+        for (width, height) in [(64, 7), (128, 9)] {
+            let geometry = Geometry::new(width, height);
+            for trial in 0..120usize {
+                let depth = depths[trial % depths.len()];
+                let id = ids[trial / 5 % ids.len()].map(|f| (f, rng.next_u64() & 0xF));
+                let test = DepthTest {
+                    field: depth,
+                    cmp: Cmp::ALL[trial / 25 % Cmp::ALL.len()],
+                    store: trial % 2 == 0,
+                    id,
+                };
+                let mut c = || rng.below(2001) as i64 - 1000;
+                let raw = [c(), c(), c(), c(), c(), c()];
+                let raw = if trial % 3 == 0 {
+                    raw
+                } else {
+                    [raw[0], raw[1], raw[2], 0, 0, 0]
+                };
+                let expr = QeeExpr::from_raw(raw);
+                let streams = Streams::for_rows(&expr, (trial as u32 * 3, trial as u32));
+                let window = Window {
+                    shift: if depth.bits == 64 {
+                        0
+                    } else {
+                        trial as u32 % 4
+                    },
+                    bits: depth.bits,
+                };
+                let mut start = IntegerEngine::new(geometry, 208, 2);
+                for limb in start.limbs.iter_mut() {
+                    limb.iter_mut()
+                        .for_each(|w| *w = rng.next_u64() & rng.next_u64());
+                }
+                for (g, en) in start.regs.enable.iter_mut().enumerate() {
+                    *en = match (g + trial) % 4 {
+                        0 => 0,
+                        1 => u64::MAX,
+                        _ => rng.next_u64(),
+                    };
+                }
+                let mut active = Vec::new();
+                start.regs.enabled_groups(&mut active);
+                let portable = |e: &IntegerEngine| {
+                    let mut p = IntegerEngine::new(geometry, 208, 2).portable();
+                    p.limbs = e.limbs.clone();
+                    p.regs = e.regs.clone();
+                    p
+                };
+                let mut one_by_one = portable(&start);
+                let compare = QeeSink::Compare {
+                    field: depth,
+                    cmp: test.cmp,
+                    dst: Bit::Enable,
+                    combine: LogicOp::AND,
+                };
+                one_by_one.qee(&streams, window, compare, &active);
+                if test.store {
+                    one_by_one.qee(&streams, window, QeeSink::Store { dst: depth }, &active);
+                }
+                if let Some((dst, value)) = id {
+                    one_by_one.write_const(dst, value, &active);
+                }
+                let mut fused = portable(&start);
+                fused.depth_test(&streams, window, test, &active);
+                start.depth_test(&streams, window, test, &active);
+                for (build, e) in [("portable", &fused), ("dispatched", &start)] {
+                    assert!(
+                        e.limbs == one_by_one.limbs && e.regs == one_by_one.regs,
+                        "{width} x {height}, trial {trial}, {build} build: {test:?} differs"
+                    );
+                }
             }
         }
     }

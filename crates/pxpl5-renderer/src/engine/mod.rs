@@ -238,6 +238,19 @@ pub enum QeeSink {
     },
 }
 
+/// A receiver's depth test, three commands that a level may run as one pass over the groups:
+/// a `QeeCompare` of the window with `field` by `cmp`, combined into enable by AND; then, at the
+/// pixels still enabled, the same window's `QeeStore` into `field` if `store`, and `id`'s
+/// `WriteConst` (field, value) if any. A group's pixels change only through that group's inputs,
+/// so doing the three a group at a time gives what doing them one after the other gives.
+#[derive(Clone, Copy, Debug)]
+pub struct DepthTest {
+    pub field: Field,
+    pub cmp: Cmp,
+    pub store: bool,
+    pub id: Option<(Field, u64)>,
+}
+
 /// The pixel work of one fidelity level. Callers have validated every operand (fields inside
 /// memory and not partially overlapping, widths matching, flags existing).
 pub trait PixelEngine {
@@ -245,6 +258,30 @@ pub trait PixelEngine {
     fn registers_mut(&mut self) -> &mut Registers;
     /// A QEE command: the tree's streams, the window the pixels use, and where it goes.
     fn qee(&mut self, streams: &Streams, window: Window, sink: QeeSink, active: &[u32]);
+    /// `test`'s commands on the groups `active` lists (a superset of those with an enabled
+    /// pixel): by default one after the other, each over the same list (the groups the compare
+    /// disables have nothing for the gated writes to change).
+    fn depth_test(&mut self, streams: &Streams, window: Window, test: DepthTest, active: &[u32]) {
+        let DepthTest {
+            field,
+            cmp,
+            store,
+            id,
+        } = test;
+        let compare = QeeSink::Compare {
+            field,
+            cmp,
+            dst: Bit::Enable,
+            combine: LogicOp::AND,
+        };
+        self.qee(streams, window, compare, active);
+        if store {
+            self.qee(streams, window, QeeSink::Store { dst: field }, active);
+        }
+        if let Some((dst, value)) = id {
+            self.write_const(dst, value, active);
+        }
+    }
     fn write_const(&mut self, dst: Field, value: u64, active: &[u32]);
     fn copy(&mut self, dst: Field, src: Field, active: &[u32]);
     fn add_sub(&mut self, dst: Field, a: Field, b: Field, subtract: bool, active: &[u32]);

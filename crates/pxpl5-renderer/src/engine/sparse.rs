@@ -50,7 +50,7 @@
 //! can run, as the `integer` level's group loops are; a test holds both to the same planes.
 
 use super::integer::{Hints, IntegerEngine, Unwrapped, may_wrap, sign_row};
-use super::{Geometry, PixelEngine, QeeSink, Registers, gated};
+use super::{DepthTest, Geometry, PixelEngine, QeeSink, Registers, gated};
 use crate::command::{Anf, Bit, Cmp, Command, Field, LogicOp, Rect};
 use crate::qee::{Streams, Window};
 
@@ -1692,6 +1692,10 @@ impl PixelEngine for SparseEngine {
 
     fn write_const(&mut self, dst: Field, value: u64, active: &[u32]) {
         self.inner.write_const(dst, value, active)
+    }
+
+    fn depth_test(&mut self, streams: &Streams, window: Window, test: DepthTest, active: &[u32]) {
+        self.inner.depth_test(streams, window, test, active)
     }
 
     fn copy(&mut self, dst: Field, src: Field, active: &[u32]) {
