@@ -639,6 +639,18 @@ impl IntegerEngine {
             let (py, px0) = (g / gpr, (g % gpr) * 64);
             let v = s.row_fn(py);
             let base = g * 64;
+            // A V linear along the row over one run of enabled pixels (a hemicube's receiver
+            // meets most groups so): compare and store in one loop.
+            let run = one_run(en).filter(|_| store && window.shift + window.bits <= 64);
+            if let (Some(at), Some(run)) = (linear_in_group(v, px0), run) {
+                let words = &mut self.limbs[a.limb][base..base + 64];
+                let passed = compare_store_run(words, run, (a, window, key), cmp, at);
+                self.regs.enable[g] = passed;
+                if let Some((i, value)) = id {
+                    const_group(&mut self.limbs[i.limb][base..base + 64], passed, (i, value));
+                }
+                continue;
+            }
             let words = &self.limbs[a.limb][base..base + 64];
             let (lt, eq) = match linear_in_group(v, px0) {
                 Some(at) => compare_group::<true>(words, en, (a, window, key), at),
@@ -663,6 +675,44 @@ impl IntegerEngine {
             }
         }
     }
+}
+
+/// A depth test's compare and store over the one run `lo..hi` of a group's enabled pixels, in
+/// one loop, for a V linear along the row (`at(i)` at pixel i) and a window that ends at bit 64
+/// at most; the field inside one limb, `key` as for [`compare_group`]. Returns the pixels that
+/// passed: enable afterwards. Each pixel's comparison selects, without a branch, whether its
+/// word takes the stored window, so the compiler vectorises the loop as it does the compare's
+/// and the store's alone (the window cut by a logical shift, as [`store_group`]'s).
+#[inline(always)]
+fn compare_store_run(
+    words: &mut [u64],
+    (lo, hi): (u32, u32),
+    (a, w, key): (Access, Window, u32),
+    cmp: Cmp,
+    at: impl Fn(u32) -> i64,
+) -> u64 {
+    let (clear, keep) = (!(a.mask << a.shift), mask(w.bits) & a.mask);
+    // Whether a pixel passes when its lhs is below, equal to or above its rhs, as all-ones or 0.
+    let (if_lt, if_eq, if_gt) = (
+        cmp.from_lt_eq(u64::MAX, 0),
+        cmp.from_lt_eq(0, u64::MAX),
+        cmp.from_lt_eq(0, 0),
+    );
+    let mut passed = 0u64;
+    for (i, word) in (lo..hi).zip(&mut words[lo as usize..hi as usize]) {
+        let value = ((at(i) as u64) >> w.shift) & keep;
+        let lhs = (value << key) as i64;
+        let rhs = (((*word >> a.shift) & a.mask) << key) as i64;
+        let (lt, eq) = (
+            0u64.wrapping_sub(u64::from(lhs < rhs)),
+            0u64.wrapping_sub(u64::from(lhs == rhs)),
+        );
+        let pass = (lt & if_lt) | (eq & if_eq) | (!(lt | eq) & if_gt);
+        passed |= (pass & 1) << i;
+        let stored = (*word & clear) | (value << a.shift);
+        *word = (stored & pass) | (*word & !pass);
+    }
+    passed
 }
 
 /// A constant written at the enabled pixels `en` of one group's 64 words, into a field inside
@@ -1087,8 +1137,9 @@ mod tests {
 
     /// `depth_test`'s one pass over the groups leaves what its three commands leave one after
     /// the other, in the v3 build and the portable one: depths inside one limb and across two,
-    /// signed and unsigned, 64 bits wide (the commands one by one), every comparison, with and
-    /// without the store, and IDs beside the depth, across limbs or over the depth's own bits.
+    /// signed and unsigned, 64 bits wide (the commands one by one), every comparison, ties
+    /// included, with and without the store, linear and quadratic V, enable in one run or
+    /// scattered, and IDs beside the depth, across limbs or over the depth's own bits.
     #[test]
     fn a_depth_test_is_its_three_commands() {
         use super::{DepthTest, Geometry, IntegerEngine, PixelEngine, QeeSink};
@@ -1147,6 +1198,13 @@ mod tests {
                 for limb in start.limbs.iter_mut() {
                     limb.iter_mut()
                         .for_each(|w| *w = rng.next_u64() & rng.next_u64());
+                }
+                if trial % 3 != 1 {
+                    // Depths equal to V where enable lets a store write: ties for `cmp`.
+                    let tie = rng.next_u64();
+                    start.regs.enable.iter_mut().for_each(|en| *en = tie);
+                    let all: Vec<u32> = (0..geometry.groups as u32).collect();
+                    start.qee(&streams, window, QeeSink::Store { dst: depth }, &all);
                 }
                 for (g, en) in start.regs.enable.iter_mut().enumerate() {
                     *en = match (g + trial) % 4 {
