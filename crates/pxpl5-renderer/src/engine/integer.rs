@@ -10,7 +10,10 @@
 //! when the engine is made, as the `bit` level's QEE loops are; a test holds both to the same
 //! values.
 
-use super::{DepthTest, Geometry, PixelEngine, QeeSink, Registers, extend, gated, value_of};
+use super::{
+    DepthTest, Geometry, PixelEngine, QeeSink, Registers, depth_test_one_by_one, extend, gated,
+    value_of,
+};
 use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
 use crate::qee::{RowFn, Streams, Window, mask};
 
@@ -595,38 +598,13 @@ impl IntegerEngine {
     /// `PixelEngine::depth_test`, inlined into each build `Groups` dispatches: a group's
     /// compare, store and constant write one after the other, so each group is visited once
     /// (its row's V, its enable word and its words found once) where three commands visit it
-    /// three times and list the enabled groups again between them. Fields that straddle two
-    /// limbs, or a compare with a side of 64 bits, take the commands one by one.
+    /// three times and list the enabled groups again between them. Only for a test
+    /// [`one_pass`] accepts.
     #[inline(always)]
     fn depth_test_groups(&mut self, s: &Streams, window: Window, test: DepthTest, active: &[u32]) {
-        let DepthTest {
-            field,
-            cmp,
-            store,
-            id,
-        } = test;
+        let (field, cmp, store) = (test.field, test.cmp, test.store);
         let a = Access::of(field);
-        let id = id.map(|(dst, value)| (Access::of(dst), value));
-        if a.straddles()
-            || field.bits >= 64
-            || window.bits >= 64
-            || id.is_some_and(|(i, _)| i.straddles())
-        {
-            let compare = QeeSink::Compare {
-                field,
-                cmp,
-                dst: Bit::Enable,
-                combine: LogicOp::AND,
-            };
-            self.qee_groups(s, window, compare, active);
-            if store {
-                self.qee_groups(s, window, QeeSink::Store { dst: field }, active);
-            }
-            if let Some((dst, value)) = test.id {
-                self.write_const_groups(dst, value, active);
-            }
-            return;
-        }
+        let id = test.id.map(|(dst, value)| (Access::of(dst), value));
         // As `qee_groups`' compare: each side as a key whose order is its value's.
         let key = if field.signed { 64 - field.bits } else { 0 };
         let gpr = self.geometry.groups_per_row;
@@ -713,6 +691,16 @@ fn compare_store_run(
         *word = (stored & pass) | (*word & !pass);
     }
     passed
+}
+
+/// Whether [`IntegerEngine::depth_test_groups`] takes `test`: its fields inside one limb each
+/// and both sides of its compare below 64 bits (as a depth and an ID always are); the rest take
+/// the commands one by one.
+fn one_pass(test: DepthTest, window: Window) -> bool {
+    !Access::of(test.field).straddles()
+        && test.field.bits < 64
+        && window.bits < 64
+        && !test.id.is_some_and(|(dst, _)| Access::of(dst).straddles())
 }
 
 /// A constant written at the enabled pixels `en` of one group's 64 words, into a field inside
@@ -912,6 +900,9 @@ impl PixelEngine for IntegerEngine {
     }
 
     fn depth_test(&mut self, s: &Streams, window: Window, test: DepthTest, active: &[u32]) {
+        if !one_pass(test, window) {
+            return depth_test_one_by_one(self, s, window, test, active);
+        }
         let arch = self.arch;
         arch.dispatch(Groups {
             engine: self,
@@ -1142,9 +1133,11 @@ mod tests {
     /// scattered, and IDs beside the depth, across limbs or over the depth's own bits.
     #[test]
     fn a_depth_test_is_its_three_commands() {
-        use super::{DepthTest, Geometry, IntegerEngine, PixelEngine, QeeSink};
+        use super::{
+            DepthTest, Geometry, IntegerEngine, PixelEngine, QeeSink, depth_test_one_by_one,
+        };
         use crate::QeeExpr;
-        use crate::command::{Bit, Cmp, Field, LogicOp};
+        use crate::command::{Cmp, Field};
         use crate::qee::{Streams, Window};
         let mut rng = pxpl5_geom::rng::Lcg::new(0xDE97_4E57);
         let field = |offset, bits, signed| Field {
@@ -1222,19 +1215,7 @@ mod tests {
                     p
                 };
                 let mut one_by_one = portable(&start);
-                let compare = QeeSink::Compare {
-                    field: depth,
-                    cmp: test.cmp,
-                    dst: Bit::Enable,
-                    combine: LogicOp::AND,
-                };
-                one_by_one.qee(&streams, window, compare, &active);
-                if test.store {
-                    one_by_one.qee(&streams, window, QeeSink::Store { dst: depth }, &active);
-                }
-                if let Some((dst, value)) = id {
-                    one_by_one.write_const(dst, value, &active);
-                }
+                depth_test_one_by_one(&mut one_by_one, &streams, window, test, &active);
                 let mut fused = portable(&start);
                 fused.depth_test(&streams, window, test, &active);
                 start.depth_test(&streams, window, test, &active);

@@ -262,25 +262,7 @@ pub trait PixelEngine {
     /// pixel): by default one after the other, each over the same list (the groups the compare
     /// disables have nothing for the gated writes to change).
     fn depth_test(&mut self, streams: &Streams, window: Window, test: DepthTest, active: &[u32]) {
-        let DepthTest {
-            field,
-            cmp,
-            store,
-            id,
-        } = test;
-        let compare = QeeSink::Compare {
-            field,
-            cmp,
-            dst: Bit::Enable,
-            combine: LogicOp::AND,
-        };
-        self.qee(streams, window, compare, active);
-        if store {
-            self.qee(streams, window, QeeSink::Store { dst: field }, active);
-        }
-        if let Some((dst, value)) = id {
-            self.write_const(dst, value, active);
-        }
+        depth_test_one_by_one(self, streams, window, test, active);
     }
     fn write_const(&mut self, dst: Field, value: u64, active: &[u32]);
     fn copy(&mut self, dst: Field, src: Field, active: &[u32]);
@@ -295,6 +277,36 @@ pub trait PixelEngine {
     fn read_values(&self, field: Field, rect: Rect) -> Vec<u64>;
     /// Overwrite the field's raw bits for the pixels of `rect`, row by row (not gated).
     fn write_values(&mut self, field: Field, rect: Rect, values: &[u64]);
+}
+
+/// `test`'s commands one after the other, each over `active`: what a depth test must leave, and
+/// how a level runs one it has no single pass for.
+pub fn depth_test_one_by_one<E: PixelEngine + ?Sized>(
+    engine: &mut E,
+    streams: &Streams,
+    window: Window,
+    test: DepthTest,
+    active: &[u32],
+) {
+    let DepthTest {
+        field,
+        cmp,
+        store,
+        id,
+    } = test;
+    let compare = QeeSink::Compare {
+        field,
+        cmp,
+        dst: Bit::Enable,
+        combine: LogicOp::AND,
+    };
+    engine.qee(streams, window, compare, active);
+    if store {
+        engine.qee(streams, window, QeeSink::Store { dst: field }, active);
+    }
+    if let Some((dst, value)) = id {
+        engine.write_const(dst, value, active);
+    }
 }
 
 /// Sign- or zero-extend the raw `bits`-bit value of a field to 64 bits.
