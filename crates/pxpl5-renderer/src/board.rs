@@ -689,7 +689,7 @@ impl Board {
     }
 
     /// The board's state in the canonical form both fidelity levels share. `&mut`: the pixel
-    /// work a level holds back ([`Pixels::apply`]) runs first.
+    /// work a level holds back (a receiver's depth test) runs first.
     pub fn image(&mut self) -> BoardImage {
         match &mut self.pixels {
             Side::Here(p) => p.image(),
