@@ -384,6 +384,19 @@ fn program_mistakes_are_errors_not_panics() {
         ),
         CommandError::Coefficient { name: "A", .. }
     ));
+    // The first coefficient out of range is named, below the range as above it.
+    assert!(matches!(
+        err(
+            &mut b,
+            Command::QeeSign {
+                expr: QeeExpr::from_raw([1, 0, 0, 0, -(1 << 40), 1 << 40]),
+                window: Window { shift: 0, bits: 8 },
+                dst: Bit::Enable,
+                combine: LogicOp::AND
+            }
+        ),
+        CommandError::Coefficient { name: "E", raw, .. } if raw == -(1 << 40)
+    ));
     assert!(matches!(
         err(
             &mut b,
