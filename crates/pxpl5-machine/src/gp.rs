@@ -426,10 +426,7 @@ impl Gp {
     /// Ring words of a list of commands (with this machine's QEE format and ring word).
     pub fn command_words(&self, commands: &[Command]) -> u32 {
         let coefficient_bits = self.renderer_cfg.qee.coefficient_format.total_bits();
-        commands
-            .iter()
-            .map(|c| c.words(coefficient_bits, self.ring_word_bits))
-            .sum()
+        Command::list_words(commands, coefficient_bits, self.ring_word_bits)
     }
 
     /// The first message `want` accepts: from the stash of messages received earlier that were

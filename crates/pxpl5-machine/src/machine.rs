@@ -761,10 +761,9 @@ fn ring_words(cfg: &MachineConfig, p: &Payload) -> u32 {
     let coefficient_bits = cfg.renderer.qee.coefficient_format.total_bits();
     let word_bits = cfg.ring.word_bits;
     match p {
-        Payload::Commands(cs) => cs
-            .iter()
-            .map(|c| c.words(coefficient_bits, word_bits))
-            .sum(),
+        Payload::Commands(cs) => {
+            pxpl5_renderer::Command::list_words(cs, coefficient_bits, word_bits)
+        }
         Payload::Pixels { words, .. } => words.len() as u32,
         Payload::Data { words, .. } => *words,
     }

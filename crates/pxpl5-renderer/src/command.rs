@@ -346,7 +346,21 @@ impl Command {
     /// `ceil(bits / word_bits)` words; one more word for an origin, a multiplier, or a readback's
     /// rectangle and destination.
     pub fn words(&self, coefficient_bits: u32, word_bits: u32) -> u32 {
+        self.words_of(coefficient_bits.div_ceil(word_bits), word_bits)
+    }
+
+    /// The ring words of a list of commands ([`Command::words`] each): the words a coefficient
+    /// takes found once for the list, not by a division per command.
+    pub fn list_words(commands: &[Command], coefficient_bits: u32, word_bits: u32) -> u32 {
         let per_coefficient = coefficient_bits.div_ceil(word_bits);
+        commands
+            .iter()
+            .map(|c| c.words_of(per_coefficient, word_bits))
+            .sum()
+    }
+
+    /// [`Command::words`] with a coefficient's words given.
+    fn words_of(&self, per_coefficient: u32, word_bits: u32) -> u32 {
         1 + match self {
             Command::QeeSign { expr, .. }
             | Command::QeeStore { expr, .. }
@@ -480,5 +494,47 @@ mod tests {
         assert!(!f(0, 8).overlaps(f(8, 2)));
         assert!(!f(0, 8).overlaps_partially(f(0, 8)));
         assert!(f(0, 8).overlaps_partially(f(0, 9)));
+    }
+
+    /// A list's words are its commands' words, with coefficients of 24, 32 and 40 bits in ring
+    /// words of 16 and 32 bits: linear and quadratic expressions, a constant, a command of none.
+    #[test]
+    fn a_list_takes_its_commands_words() {
+        let depth = Field {
+            offset: 0,
+            bits: 40,
+            signed: true,
+        };
+        let window = Window { shift: 0, bits: 40 };
+        let list = [
+            Command::QeeStore {
+                expr: QeeExpr::from_raw([1, 2, 3, 0, 0, 0]),
+                window,
+                dst: depth,
+            },
+            Command::QeeSign {
+                expr: QeeExpr::from_raw([1, 2, 3, 0, 5, 0]),
+                window,
+                dst: Bit::Enable,
+                combine: LogicOp::AND,
+            },
+            Command::WriteConst {
+                dst: depth,
+                value: 7,
+            },
+            Command::enable_all(),
+        ];
+        for (coefficient_bits, word_bits) in [(24, 16), (32, 32), (40, 32), (32, 16)] {
+            let each: u32 = list
+                .iter()
+                .map(|c| c.words(coefficient_bits, word_bits))
+                .sum();
+            let per = coefficient_bits.div_ceil(word_bits);
+            assert_eq!(each, 4 + 3 * per + 6 * per + 40u32.div_ceil(word_bits));
+            assert_eq!(
+                Command::list_words(&list, coefficient_bits, word_bits),
+                each
+            );
+        }
     }
 }
