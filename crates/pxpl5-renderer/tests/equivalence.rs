@@ -509,7 +509,7 @@ fn depth_tests() -> impl Strategy<Value = Vec<Command>> {
             },
         );
     let receivers = prop::collection::vec(
-        prop_oneof![4 => receiver.prop_map(|r| r), 1 => command().prop_map(|c| vec![c])],
+        prop_oneof![4 => receiver, 1 => command().prop_map(|c| vec![c])],
         1..10,
     );
     from_an_origin(receivers.prop_map(|r| r.concat()))
