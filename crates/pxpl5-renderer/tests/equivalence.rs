@@ -352,6 +352,103 @@ fn ellipse_receivers() -> impl Strategy<Value = Vec<Command>> {
     })
 }
 
+/// Receivers drawn inside a view's region, as a hemicube side face is drawn on part of a board:
+/// enable set from a flag that holds a rectangle, then edges whose windows hold their values
+/// on the board's rows and columns up to the rectangle's last (which the `sparse` level then
+/// solves as half-planes), now and then a bit narrower (wrapping inside it) or as wide as the
+/// board needs.
+fn region_receivers() -> impl Strategy<Value = Vec<Command>> {
+    let linear = (coefficient(), coefficient(), coefficient())
+        .prop_map(|(a, b, c)| QeeExpr::from_raw([a, b, c, 0, 0, 0]));
+    let edge = (
+        prop_oneof![3 => linear, 1 => expr()],
+        prop_oneof![4 => Just(0i32), 1 => Just(-1i32), 1 => Just(1i32)],
+        any::<bool>(),
+    );
+    let receiver = prop::collection::vec(edge, 1..6);
+    (
+        (0u32..300, 0u32..300),
+        (0u32..40, 0u32..64, 0u32..10, 0u32..16),
+        prop::collection::vec(receiver, 1..5),
+    )
+        .prop_map(|((ox, oy), (x0, w, y0, h), rs)| {
+            let (x1, y1) = ((x0 + w).min(63), (y0 + h).min(15));
+            // A window that holds V on columns 0 ..= x1 and rows 0 ..= y1 of the board, `more`
+            // bits wider; capped at 64 bits.
+            let window = |expr: QeeExpr, (x1, y1): (u32, u32), more: i32| {
+                let w = expr.sign_window((ox, oy), x1 + 1, y1 + 1);
+                let bits = (w.bits as i32 + more).clamp(1, 64) as u32;
+                Window { shift: 0, bits }
+            };
+            let whole = |expr: QeeExpr| window(expr, (63, 15), 0);
+            let (ox_, oy_) = (i64::from(ox), i64::from(oy));
+            // The rectangle's four sides: px >= x0, px <= x1, py >= y0, py <= y1.
+            let sides = [
+                [1, 0, -(ox_ + i64::from(x0))],
+                [-1, 0, ox_ + i64::from(x1)],
+                [0, 1, -(oy_ + i64::from(y0))],
+                [0, -1, oy_ + i64::from(y1)],
+            ];
+            let mut v = vec![Command::SetOrigin { x: ox, y: oy }, Command::enable_all()];
+            for [a, b, c] in sides {
+                let expr = QeeExpr::from_raw([a, b, c, 0, 0, 0]);
+                v.push(Command::QeeSign {
+                    expr,
+                    window: whole(expr),
+                    dst: Bit::Enable,
+                    combine: LogicOp::AND,
+                });
+            }
+            v.push(Command::Logic {
+                dst: Bit::Flag(3),
+                a: Bit::Enable,
+                b: Bit::Enable,
+                op: LogicOp::A,
+            });
+            for edges in rs {
+                v.push(Command::Logic {
+                    dst: Bit::Enable,
+                    a: Bit::Flag(3),
+                    b: Bit::Flag(3),
+                    op: LogicOp::A,
+                });
+                for (expr, more, through_a_flag) in edges {
+                    let window = window(expr, (x1, y1), more);
+                    if through_a_flag {
+                        v.push(Command::QeeSign {
+                            expr,
+                            window,
+                            dst: Bit::Flag(0),
+                            combine: LogicOp::B,
+                        });
+                        v.push(Command::Logic {
+                            dst: Bit::Enable,
+                            a: Bit::Enable,
+                            b: Bit::Flag(0),
+                            op: LogicOp::AND,
+                        });
+                    } else {
+                        v.push(Command::QeeSign {
+                            expr,
+                            window,
+                            dst: Bit::Enable,
+                            combine: LogicOp::AND,
+                        });
+                    }
+                }
+                v.push(Command::WriteConst {
+                    dst: Field {
+                        offset: 8,
+                        bits: 13,
+                        signed: false,
+                    },
+                    value: v.len() as u64 & 0x1fff,
+                });
+            }
+            v
+        })
+}
+
 /// `commands` after a random region origin.
 fn from_an_origin(
     commands: impl Strategy<Value = Vec<Command>>,
@@ -381,6 +478,16 @@ proptest! {
 
     #[test]
     fn sparse_agrees_with_bit_on_receiver_streams(commands in receivers()) {
+        run_both(&small(), &commands)?;
+    }
+
+    #[test]
+    fn sparse_follows_integer_on_receivers_in_a_region(commands in region_receivers()) {
+        sparse_follows_integer(&small(), &commands)?;
+    }
+
+    #[test]
+    fn sparse_agrees_with_bit_on_receivers_in_a_region(commands in region_receivers()) {
         run_both(&small(), &commands)?;
     }
 

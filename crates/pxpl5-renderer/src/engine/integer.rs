@@ -240,10 +240,17 @@ impl Unwrapped {
 /// Whether a sign test of `s` through `window` may meet, somewhere on a board of `geometry`, a
 /// value the window cannot hold unwrapped: then its rows are checked one by one (`CHECKS`).
 pub(super) fn may_wrap(s: &Streams, window: Window, geometry: Geometry) -> bool {
+    may_wrap_within(s, window, (geometry.width, geometry.height))
+}
+
+/// [`may_wrap`] on the board's first `width` columns of its first `height` rows only.
+pub(super) fn may_wrap_within(
+    s: &Streams,
+    window: Window,
+    (width, height): (usize, usize),
+) -> bool {
     let origin = (s.origin_x as u32, s.origin_y as u32);
-    let bound = s
-        .expr
-        .bound(origin, geometry.width as u32, geometry.height as u32);
+    let bound = s.expr.bound(origin, width as u32, height as u32);
     bound > Unwrapped::of(window).max as u128
 }
 
