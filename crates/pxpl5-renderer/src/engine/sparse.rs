@@ -959,7 +959,7 @@ impl Ellipse {
         let [a, b, c, d, ee, f] = e.raw().map(i128::from);
         // V at x = ox + px, y = oy + py, as a quadratic in (px, py); checked, since an origin
         // and coefficients at their extremes overflow even i128.
-        let mul = |x: i128, y: i128| x.checked_mul(y);
+        let mul = mul128;
         let k = [
             a.checked_add(mul(mul(2, d)?, ox)?)?
                 .checked_add(mul(ee, oy)?)?,
@@ -987,7 +987,7 @@ impl Ellipse {
             k
         };
         let [_, _, _, d, ee, f] = k;
-        let definite = d.checked_mul(f)?.checked_mul(4)? > ee.checked_mul(ee)?;
+        let definite = mul128(mul128(d, f)?, 4)? > mul128(ee, ee)?;
         (d < 0 && f < 0 && definite).then_some(Ellipse { k })
     }
 
@@ -1014,6 +1014,19 @@ impl Ellipse {
     }
 }
 
+/// `x * y`, `None` if it overflows i128: one widening multiply where both fit i64 (their
+/// product then fits), the checked multiply otherwise, a library call (`__muloti4`) that was
+/// most of the cost of an ellipse's constants.
+#[inline(always)]
+fn mul128(x: i128, y: i128) -> Option<i128> {
+    let fits = |v: i128| i128::from(v as i64) == v;
+    if fits(x) && fits(y) {
+        Some(x * y)
+    } else {
+        x.checked_mul(y)
+    }
+}
+
 /// `k2 t^2 + k1 t + k0` with k2 < 0, over integers t.
 struct Concave {
     k: [i128; 3],
@@ -1030,13 +1043,10 @@ impl Concave {
     /// `(p + q t)^2 - 4 r (c + s t + u t^2)`, whose leading coefficient `q^2 - 4 r u` is
     /// negative for an ellipse. `None` if a coefficient overflows.
     fn discriminant(p: i128, q: i128, r: i128, s: i128, u: i128, c: i128) -> Option<Concave> {
-        let r4 = r.checked_mul(4)?;
-        let k2 = q.checked_mul(q)?.checked_sub(r4.checked_mul(u)?)?;
-        let k1 = p
-            .checked_mul(q)?
-            .checked_mul(2)?
-            .checked_sub(r4.checked_mul(s)?)?;
-        let k0 = p.checked_mul(p)?.checked_sub(r4.checked_mul(c)?)?;
+        let r4 = mul128(r, 4)?;
+        let k2 = mul128(q, q)?.checked_sub(mul128(r4, u)?)?;
+        let k1 = mul128(mul128(p, q)?, 2)?.checked_sub(mul128(r4, s)?)?;
+        let k0 = mul128(p, p)?.checked_sub(mul128(r4, c)?)?;
         let small = [k2, k1, k0].iter().all(|k| k.abs() < COEFFICIENT_LIMIT);
         (k2 < 0 && small).then_some(Concave { k: [k2, k1, k0] })
     }
@@ -1888,6 +1898,43 @@ mod tests {
         }
         // The half-planes cut areas, neither emptying nor filling every one.
         assert!(pixels > 10_000, "{pixels} pixels inside");
+    }
+
+    /// `mul128` is `checked_mul`: inside i64 and out, at the extremes, and past overflow.
+    #[test]
+    fn mul128_is_the_checked_multiply() {
+        let big = i128::from(i64::MAX);
+        let values = [
+            0,
+            1,
+            -1,
+            4,
+            -3000,
+            big,
+            -big - 1,
+            big + 1,
+            -big - 2,
+            1 << 100,
+            -(1 << 100),
+            i128::MAX,
+            i128::MIN,
+        ];
+        for &x in &values {
+            for &y in &values {
+                assert_eq!(mul128(x, y), x.checked_mul(y), "{x} * {y}");
+            }
+        }
+        let mut r = 0x5EED_u64;
+        let mut word = || {
+            draw(&mut r, 0, 0);
+            r as i64
+        };
+        for _ in 0..10_000 {
+            let (x, y, sx, sy) = (word(), word(), word(), word());
+            let x = i128::from(x) << (sx as u64 % 70);
+            let y = i128::from(y) >> (sy as u64 % 64);
+            assert_eq!(mul128(x, y), x.checked_mul(y), "{x} * {y}");
+        }
     }
 
     /// `Concave::at_least_zero` gives the first and last t at which the quadratic is at least 0,
