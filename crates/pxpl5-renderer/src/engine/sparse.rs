@@ -699,9 +699,7 @@ impl SparseEngine {
         }
         plane
     }
-}
 
-impl SparseEngine {
     /// A flag's one layer, written on its epoch's base before any conjunct, when its value is
     /// a function of one linear sign test, unwrapped in the epoch's area (a hemicube view's
     /// rows, `view_setup`): on each row the test is 1 on its half-plane's span (`side`), found
@@ -721,11 +719,15 @@ impl SparseEngine {
         let g = self.geometry;
         let gpr = g.groups_per_row;
         let all = |b: bool| if b { u64::MAX } else { 0 };
-        for (py, (out, base)) in plane
-            .chunks_exact_mut(gpr)
-            .zip(ep.base.chunks_exact(gpr))
-            .enumerate()
-        {
+        // Only the area's rows: the base holds no pixel outside them, and there the half-plane's
+        // values are not known to fit i64.
+        let Some(area) = ep.area else { return true };
+        let rows = area.y0 * gpr..(area.y1 + 1) * gpr;
+        for (py, (out, base)) in (area.y0..).zip(
+            plane[rows.clone()]
+                .chunks_exact_mut(gpr)
+                .zip(ep.base[rows].chunks_exact(gpr)),
+        ) {
             let span = half_line(k0 + ky * py as i64, kx, 0, g.width - 1);
             for (i, (o, &b)) in out.iter_mut().zip(base).enumerate() {
                 let inside = span.map_or(0, |(lo, hi)| {
@@ -889,9 +891,9 @@ impl Step {
 impl Step {
     /// The half-plane `k0 + kx px + ky py >= 0` (at board pixel (px, py)) outside which this
     /// step is false, if it holds only where its first test, linear in both coordinates and
-    /// unwrapped in its epoch's area, has one sign. Exact in i64: k0 and every partial sum taken with
-    /// it (`narrow`) are sums of the terms `QeeExpr::bound` adds for the board up to the
-    /// epoch's area (`SignTerm::checks`), which the window's unwrapped range holds.
+    /// unwrapped in its epoch's area, has one sign. Exact in i64: k0 and every partial sum
+    /// taken with it (`narrow`) are sums of the terms `QeeExpr::bound` adds for the board up to
+    /// the epoch's area (`SignTerm::checks`), which the window's unwrapped range holds.
     fn half_plane(&self, signs: &[SignTerm]) -> Option<[i64; 3]> {
         let positive = self.false_where_first_is_0();
         let negative = self.depends.1 == 0 && !eval(self.op, true, true);
@@ -944,9 +946,9 @@ impl Step {
 }
 
 /// The half-plane `k0 + kx px + ky py >= 0` (at board pixel (px, py)) where linear sign test `t`,
-/// unwrapped in its epoch's area, is 1 (`positive`) or 0. Exact in i64: k0 and every partial sum taken
-/// with it (`narrow`) are sums of the terms `QeeExpr::bound` adds for the board up to the
-/// epoch's area (`SignTerm::checks`), which the window's unwrapped range holds.
+/// unwrapped in its epoch's area, is 1 (`positive`) or 0. Exact in i64: k0 and every partial
+/// sum taken with it (`narrow`) are sums of the terms `QeeExpr::bound` adds for the board up to
+/// the epoch's area (`SignTerm::checks`), which the window's unwrapped range holds.
 fn side(t: &SignTerm, positive: bool) -> Option<[i64; 3]> {
     let e = &t.streams.expr;
     if t.checks || e.is_quadratic() {
