@@ -723,22 +723,18 @@ impl SparseEngine {
         // values are not known to fit i64.
         let Some(area) = ep.area else { return true };
         let rows = area.y0 * gpr..(area.y1 + 1) * gpr;
+        let mut inside = vec![0u64; gpr];
         for (py, (out, base)) in (area.y0..).zip(
             plane[rows.clone()]
                 .chunks_exact_mut(gpr)
                 .zip(ep.base[rows].chunks_exact(gpr)),
         ) {
-            let span = half_line(k0 + ky * py as i64, kx, 0, g.width - 1);
-            for (i, (o, &b)) in out.iter_mut().zip(base).enumerate() {
-                let inside = span.map_or(0, |(lo, hi)| {
-                    let (lo, hi) = (lo.max(i * 64), hi.min(i * 64 + 63));
-                    if lo > hi {
-                        0
-                    } else {
-                        (u64::MAX << (lo % 64)) & (u64::MAX >> (63 - hi % 64))
-                    }
-                });
-                let value = (inside & all(on1)) | (!inside & all(on0));
+            inside.fill(0);
+            if let Some((lo, hi)) = half_line(k0 + ky * py as i64, kx, 0, g.width - 1) {
+                for_span_words(lo, hi, |i, m| inside[i] = m);
+            }
+            for ((o, &b), &m) in out.iter_mut().zip(base).zip(&inside) {
+                let value = (m & all(on1)) | (!m & all(on0));
                 *o = gated(*o, b, value);
             }
         }
