@@ -275,8 +275,7 @@ pub(crate) fn decide_at(
     flow.next_clock = t + 1;
 }
 
-/// Starts `pkt` on channel `c` at clock `t`: its timing, and the flow's bookkeeping (the packet
-/// leaves its queue's unstarted part, its message's credit is reserved at the destination).
+/// Starts `pkt` on channel `c` at clock `t`: its timing, and the flow's bookkeeping ([`book`]).
 fn capture(p: &Params, flow: &mut Flow, c: u32, pkt: Packet, t: u64) -> Capture {
     let end_tx = t + u64::from(pkt.words);
     let arrival = end_tx + p.hops(pkt.src, pkt.dst) * p.hop;
@@ -284,8 +283,7 @@ fn capture(p: &Params, flow: &mut Flow, c: u32, pkt: Packet, t: u64) -> Capture 
         TokenPolicy::EarlyRelease => end_tx,
         TokenPolicy::LateRelease => arrival,
     };
-    flow.offsets[pkt.src as usize] += 1;
-    flow.in_used[pkt.dst as usize] += u64::from(pkt.reserve);
+    book(flow, &pkt);
     Capture {
         channel: c,
         packet: pkt,
@@ -294,6 +292,13 @@ fn capture(p: &Params, flow: &mut Flow, c: u32, pkt: Packet, t: u64) -> Capture 
         arrival,
         release,
     }
+}
+
+/// A capture's bookkeeping in the flow: the packet leaves its queue's unstarted part, and its
+/// message's credit is reserved at the destination.
+pub(crate) fn book(flow: &mut Flow, pkt: &Packet) {
+    flow.offsets[pkt.src as usize] += 1;
+    flow.in_used[pkt.dst as usize] += u64::from(pkt.reserve);
 }
 
 /// The message-level model's decisions at clock `t` (crate doc, "ring levels"): every channel

@@ -97,33 +97,70 @@ struct ChannelAcc {
 }
 
 /// The decisions a look-ahead took on its copy of the flow, for the ring to take them again
-/// without searching: valid while nothing is sent or consumed, each step taking the next clock.
-/// Decisions are a function of the queues and the flow alone (events never change either), so
-/// the ring, stepping from the state the look-ahead copied, meets the same clocks.
+/// without searching or deciding: valid while nothing is sent or consumed, each step taking the
+/// next one. Decisions are a function of the queues and the flow alone (events change neither),
+/// so the ring, stepping from the state the look-ahead copied, meets the same decisions.
 #[derive(Clone, Debug, Default)]
 struct Plan {
     valid: bool,
-    clocks: Vec<u64>,
-    /// How many of `clocks` the ring has stepped.
+    /// Each decision's clock and the end of its captures in `caps`.
+    decisions: Vec<(u64, usize)>,
+    caps: Vec<Capture>,
+    /// The tokens after each decision, a channel's each.
+    tokens: Vec<Token>,
+    /// How many of `decisions` the ring has stepped.
     taken: usize,
-    /// [`engine::next_decision`] after the last of `clocks`.
+    /// [`engine::next_decision`] after the last of `decisions`.
     then: Option<u64>,
 }
 
 impl Plan {
     /// The ring's next decision by the plan, `None` without one.
     fn next(&self) -> Option<Option<u64>> {
-        self.valid
-            .then(|| self.clocks.get(self.taken).copied().or(self.then))
+        self.valid.then(|| {
+            self.decisions
+                .get(self.taken)
+                .map(|&(clock, _)| clock)
+                .or(self.then)
+        })
     }
 
-    /// The ring stepped clock `t`: the plan's next clock, or the plan no longer holds.
-    fn take(&mut self, t: u64) {
-        if self.valid && self.clocks.get(self.taken) == Some(&t) {
-            self.taken += 1;
-        } else {
+    /// Start a plan from nothing decided.
+    fn clear(&mut self) {
+        self.decisions.clear();
+        self.caps.clear();
+        self.tokens.clear();
+        self.taken = 0;
+    }
+
+    /// Record the decision `flow` took at clock `t`, its captures `caps`.
+    fn record(&mut self, t: u64, flow: &Flow, caps: &[Capture]) {
+        self.caps.extend_from_slice(caps);
+        self.tokens.extend_from_slice(&flow.tokens);
+        self.decisions.push((t, self.caps.len()));
+    }
+
+    /// Take clock `t`'s decisions on `flow` as [`engine::decide_at`] would, appending the
+    /// captures to `caps`, if the plan's next decision is at `t`; else the plan no longer holds
+    /// and `false`.
+    fn replay(&mut self, t: u64, flow: &mut Flow, caps: &mut Vec<Capture>) -> bool {
+        let i = self.taken;
+        if !(self.valid && self.decisions.get(i).is_some_and(|&(clock, _)| clock == t)) {
             self.valid = false;
+            return false;
         }
+        let from = i.checked_sub(1).map_or(0, |j| self.decisions[j].1);
+        let to = self.decisions[i].1;
+        let n = flow.tokens.len();
+        flow.tokens
+            .copy_from_slice(&self.tokens[i * n..(i + 1) * n]);
+        for cap in &self.caps[from..to] {
+            engine::book(flow, &cap.packet);
+        }
+        caps.extend_from_slice(&self.caps[from..to]);
+        flow.next_clock = t + 1;
+        self.taken += 1;
+        true
     }
 }
 
@@ -504,13 +541,15 @@ impl Ring {
         );
     }
 
-    /// Events due by clock `t`, then the capture decisions of clock `t`.
+    /// Events due by clock `t`, then the capture decisions of clock `t` (the plan's, while it
+    /// holds).
     fn step(&mut self, t: u64, caps: &mut Vec<Capture>) {
         self.decision.set(None);
-        self.plan.get_mut().take(t);
         self.run_events(t);
         caps.clear();
-        engine::decide_at(&self.p, &self.out, &mut self.flow, t, caps);
+        if !self.plan.get_mut().replay(t, &mut self.flow, caps) {
+            engine::decide_at(&self.p, &self.out, &mut self.flow, t, caps);
+        }
         for cap in caps.iter() {
             self.apply(cap);
         }
@@ -714,8 +753,7 @@ impl Ring {
         };
         let mut caps = self.caps.borrow_mut();
         let mut plan = self.plan.borrow_mut();
-        plan.clocks.clear();
-        plan.taken = 0;
+        plan.clear();
         // The first decision is the ring's own, known already.
         let mut next = Some(first);
         while let Some(t) = next {
@@ -725,7 +763,7 @@ impl Ring {
             caps.clear();
             engine::decide_at(&self.p, &self.out, flow, t, &mut caps);
             Self::check_progress(&caps, t);
-            plan.clocks.push(t);
+            plan.record(t, flow, &caps);
             for cap in caps.iter() {
                 // A packet frees its output words before it can arrive anywhere.
                 best = Some(best.map_or(cap.end_tx, |b| b.min(cap.end_tx)));
