@@ -684,8 +684,12 @@ fn compare_store_run(
         cmp.from_lt_eq(0, 0),
     );
     let mut passed = 0u64;
+    // V linear along the row: stepped by one wrapping add a pixel, which vectorises as four
+    // lanes stepped together, where `at(i)`'s 64-bit multiply has no AVX2 instruction.
+    let (mut v, step) = (at(lo), at(lo + 1).wrapping_sub(at(lo)));
     for (i, word) in (lo..hi).zip(&mut words[lo as usize..hi as usize]) {
-        let value = ((at(i) as u64) >> w.shift) & keep;
+        let value = ((v as u64) >> w.shift) & keep;
+        v = v.wrapping_add(step);
         let lhs = (value << key) as i64;
         let rhs = (((*word >> a.shift) & a.mask) << key) as i64;
         let (lt, eq) = (
@@ -809,8 +813,12 @@ fn store_group<const RUNS: bool>(
     };
     match one_run(en).filter(|_| RUNS && w.shift + w.bits <= 64) {
         Some((lo, hi)) => {
-            for (i, word) in (lo..hi).zip(&mut words[lo as usize..hi as usize]) {
-                store(word, i);
+            // V linear (`RUNS`): stepped as in `compare_store_run`.
+            let (mut v, step) = (at(lo), at(lo + 1).wrapping_sub(at(lo)));
+            for word in &mut words[lo as usize..hi as usize] {
+                let value = ((v as u64) >> w.shift) & keep;
+                *word = (*word & clear) | (value << a.shift);
+                v = v.wrapping_add(step);
             }
         }
         None => for_each_bit(en, |i| store(&mut words[i as usize & 63], i)),
