@@ -261,9 +261,10 @@ impl CommandBatch {
 
     /// Add a group of commands that must travel in one message (one receiver's, one triangle's);
     /// first send what the batch holds if the group would not fit beside it. Whether it sent a
-    /// message (a program drawing into several boards can then turn to another).
-    pub async fn push(&mut self, gp: &Gp, group: Vec<Command>) -> bool {
-        let w = gp.command_words(&group);
+    /// message (a program drawing into several boards can then turn to another). The group is
+    /// left empty, its buffer the caller's for the next group.
+    pub async fn push(&mut self, gp: &Gp, group: &mut Vec<Command>) -> bool {
+        let w = gp.command_words(group);
         let full = self.words + w > gp.max_message_words && !self.commands.is_empty();
         if full {
             self.send(gp).await;
@@ -279,7 +280,7 @@ impl CommandBatch {
                     .min(MAX_RESERVED_COMMANDS),
             );
         }
-        self.commands.extend(group);
+        self.commands.append(group);
         self.words += w;
         full
     }

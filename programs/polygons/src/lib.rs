@@ -347,20 +347,20 @@ async fn gp_main(gp: Gp, scene: &TriangleScene) -> Result<(), ProgramError> {
         for k in (0..screen.regions()).filter(|k| k % renderers == r) {
             let origin = screen.origin(k);
             let mut batch = CommandBatch::new(r);
-            batch.push(&gp, clear_commands(&fields)).await;
+            batch.push(&gp, &mut clear_commands(&fields)).await;
             for t in &mine_binned {
                 if !regions(t, side, screen.columns, screen.rows)
                     .contains(&(origin.0 / side, origin.1 / side))
                 {
                     continue;
                 }
-                let cmds = gp
+                let mut cmds = gp
                     .work(|cost| {
                         cost.add(Op::EdgeSetup, 7);
                         triangle_commands(t, origin, side, &fields, format)
                     })
                     .await?;
-                batch.push(&gp, cmds).await;
+                batch.push(&gp, &mut cmds).await;
             }
             let w = fw.saturating_sub(origin.0).min(side);
             let h = fh.saturating_sub(origin.1).min(side);
@@ -375,7 +375,7 @@ async fn gp_main(gp: Gp, scene: &TriangleScene) -> Result<(), ProgramError> {
                 dest: Unit::FrameBuffer.encode(),
                 tag: origin.0 | (origin.1 << 16),
             };
-            batch.push(&gp, vec![readback]).await;
+            batch.push(&gp, &mut vec![readback]).await;
             batch.finish(&gp).await;
         }
     }

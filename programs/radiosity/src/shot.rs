@@ -20,8 +20,9 @@ use pxpl5_renderer::{Command, Rect, readback};
 
 use crate::exact;
 use crate::views::{
-    Cull, EdgeRule, Face, HemisphereDepth, ShooterFrame, ViewFields, hemicube_delta_ff,
-    hemicube_polygon, hemisphere_delta_ff, hemisphere_polygon, view_setup, w_table,
+    Cull, EdgeRule, Face, HemisphereDepth, PolygonBuffers, ShooterFrame, ViewFields,
+    hemicube_delta_ff, hemicube_polygon, hemisphere_delta_ff, hemisphere_polygon, view_setup,
+    w_table,
 };
 
 /// How form factors are computed.
@@ -182,25 +183,36 @@ impl View {
         opts: &FfOptions,
         (f, format): (&ViewFields, FixedFormat),
         cost: &mut Cost,
-    ) -> Result<Vec<Command>, Cull> {
+        buffers: &mut PolygonBuffers,
+    ) -> Result<(), Cull> {
         cost.add(Op::ClipTest, verts.len() as u64);
-        let drawn = match self.kind {
+        match self.kind {
             ViewKind::Disk { n } => {
-                hemisphere_polygon(verts, id, n, (opts.edge_rule, opts.depth), f, format)
+                let (rule, depth) = (opts.edge_rule, opts.depth);
+                hemisphere_polygon(
+                    verts,
+                    id,
+                    n,
+                    (rule, depth),
+                    f,
+                    format,
+                    &mut buffers.commands,
+                )
             }
             ViewKind::Face { face, n } => {
                 if opts.skip_faces && !may_touch(verts, face) {
                     Err(Cull::OutsideFace)
                 } else {
                     cost.add(Op::VertexTransform, verts.len() as u64);
-                    hemicube_polygon(verts, id, face, n, f, format)
+                    hemicube_polygon(verts, id, face, n, f, format, buffers)
                 }
             }
         }?;
         cost.add(Op::PolygonSetup, 1);
+        let drawn = &buffers.commands;
         let expressions = drawn.iter().filter(|c| c.qee().is_some()).count() as u64;
         cost.add(Op::EdgeSetup, expressions);
-        Ok(drawn)
+        Ok(())
     }
 
     /// The readback of band `band` of `gps` of this view's IDs to GP `band`, with `tag` (a
@@ -656,6 +668,7 @@ pub async fn shoot(
     // queueing behind one slow board.
     let mut drawing: VecDeque<Drawing> = VecDeque::new();
     let mut gather = Gather::default();
+    let mut buffers = PolygonBuffers::default();
     while !left.finished()
         || gather.complete < gather.announced
         || coordinator.as_ref().is_some_and(|c| !c.finished())
@@ -672,7 +685,7 @@ pub async fn shoot(
         let Some(m) = m else {
             let pick = g as usize % drawing.len();
             let mut d = drawing.remove(pick).expect("drawing is not empty");
-            match draw.step(gp, &mut d, culls).await {
+            match draw.step(gp, &mut d, culls, &mut buffers).await {
                 Step::Sent => drawing.insert(pick, d),
                 Step::Probed => left.draws -= 1,
                 Step::Nothing => {
@@ -923,7 +936,13 @@ enum Step {
 impl Draw<'_> {
     /// Draw this GP's receivers in `d`'s view until a message of commands (under the packet size)
     /// has been sent or the receivers are exhausted; after the last, probe the board.
-    async fn step(&self, gp: &Gp, d: &mut Drawing, culls: &mut CullCounts) -> Step {
+    async fn step(
+        &self,
+        gp: &Gp,
+        d: &mut Drawing,
+        culls: &mut CullCounts,
+        buffers: &mut PolygonBuffers,
+    ) -> Step {
         gp.phase("gp setup and send");
         let v = &self.views[d.view];
         let (s, opts) = (self.s, self.opts);
@@ -932,13 +951,15 @@ impl Draw<'_> {
             let r = &self.receivers[d.next];
             let verts = &local[self.local.starts[d.next]..self.local.starts[d.next + 1]];
             d.next += 1;
+            let fields = (&s.fields, s.format);
+            let buffers = &mut *buffers;
             let drawn = gp
-                .work(|cost| v.receiver_commands(verts, r.id, opts, (&s.fields, s.format), cost))
+                .work(|cost| v.receiver_commands(verts, r.id, opts, fields, cost, buffers))
                 .await;
             match drawn {
-                Ok(cmds) => {
+                Ok(()) => {
                     culls.drawn += 1;
-                    if d.batch.push(gp, cmds).await {
+                    if d.batch.push(gp, &mut buffers.commands).await {
                         return Step::Sent;
                     }
                 }
@@ -1035,7 +1056,7 @@ impl Coordinator {
             probes
                 .push(
                     gp,
-                    vec![completion_probe(&s.fields, g, Reply::Ready.tag(view))],
+                    &mut vec![completion_probe(&s.fields, g, Reply::Ready.tag(view))],
                 )
                 .await;
         }
@@ -1063,7 +1084,7 @@ impl Coordinator {
             .collect();
         let mut batch = CommandBatch::new(board);
         for cmd in bands {
-            batch.push(gp, vec![cmd]).await;
+            batch.push(gp, &mut vec![cmd]).await;
         }
         batch.finish(gp).await;
         self.read += 1;

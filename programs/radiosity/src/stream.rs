@@ -21,7 +21,7 @@ use pxpl5_sim::Cycles;
 
 use crate::mesh::{MeshError, Patch, mesh};
 use crate::shot::{FfOptions, Method, Reply, completion_probe, views};
-use crate::views::{ShooterFrame, ViewFields};
+use crate::views::{PolygonBuffers, ShooterFrame, ViewFields};
 use crate::{scenes, solver};
 
 /// The patch size of the benchmark's mesh: `pxpl5 radiosity`'s default (90 mm).
@@ -83,6 +83,7 @@ pub fn cornell_stream(
     let gps = cfg.gp.count;
     let mut commands = Vec::new();
     let mut culled = 0;
+    let mut buffers = PolygonBuffers::default();
     for (shot, &i) in shooters.iter().enumerate() {
         let frame =
             ShooterFrame::new(patches[i].centre, patches[i].normal, scale).turned(opts.turn(shot));
@@ -96,9 +97,9 @@ pub fn cornell_stream(
             commands.push(completion_probe(&fields, 0, Reply::Ready.tag(k)));
             for (j, verts) in local.iter().enumerate() {
                 let id = (j + 1) as u16;
-                match v.receiver_commands(verts, id, opts, (&fields, format), &mut Cost::default())
-                {
-                    Ok(c) => commands.extend(c),
+                let (fields, cost) = ((&fields, format), &mut Cost::default());
+                match v.receiver_commands(verts, id, opts, fields, cost, &mut buffers) {
+                    Ok(()) => commands.append(&mut buffers.commands),
                     Err(_) => culled += 1,
                 }
             }

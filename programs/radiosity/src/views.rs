@@ -218,8 +218,21 @@ fn receiver_plane(verts: &[DVec3]) -> Result<(DVec3, f64), Cull> {
     Ok((normal, d))
 }
 
+/// What drawing a receiver fills, kept by a GP from receiver to receiver: the commands drawn and
+/// the hemicube's polygon on its way through the clip and the projection. Made anew for each
+/// receiver they were four allocations a hemicube receiver (391 K in the main job's hemicube,
+/// with their frees 1 % of its host instructions) and one a hemisphere receiver.
+#[derive(Debug, Default)]
+pub struct PolygonBuffers {
+    /// The receiver's commands, once drawn.
+    pub commands: Vec<Command>,
+    poly: Vec<DVec3>,
+    clipped: Vec<DVec3>,
+    screen: Vec<(f64, f64)>,
+}
+
 /// The Renderer commands that draw one receiver (vertices already in the shooter's frame) on a
-/// hemisphere of `n` pixels across, or why it is culled.
+/// hemisphere of `n` pixels across into `out` (whose contents they replace), or why it is culled.
 pub fn hemisphere_polygon(
     verts: &[DVec3],
     id: u16,
@@ -227,7 +240,8 @@ pub fn hemisphere_polygon(
     (rule, depth): (EdgeRule, HemisphereDepth),
     f: &ViewFields,
     format: FixedFormat,
-) -> Result<Vec<Command>, Cull> {
+    out: &mut Vec<Command>,
+) -> Result<(), Cull> {
     let m = verts.len();
     let centroid = verts.iter().fold(DVec3::ZERO, |a, &v| a + v) * (1.0 / m as f64);
     let (normal, d) = receiver_plane(verts)?;
@@ -239,7 +253,8 @@ pub fn hemisphere_polygon(
     let window = |e: QeeExpr| e.sign_window((0, 0), n, n);
     // Room for every command: the enable, up to four an edge, the depth's and ID's (a receiver's
     // list grown push by push was 89 K reallocations in 120 shots).
-    let mut out = Vec::with_capacity(1 + 4 * m + MAX_DEPTH_AND_ID);
+    out.clear();
+    out.reserve(1 + 4 * m + MAX_DEPTH_AND_ID);
     out.push(Command::Logic {
         dst: Bit::Enable,
         a: f.view,
@@ -277,7 +292,7 @@ pub fn hemisphere_polygon(
                 let [a, b, c] = pl.to_array();
                 // L + c w_rim: directions below the rim's sample elevation are tested at it
                 // ([`rim_sample_w`]); above it the rule is exact, as with L alone.
-                push_sign(&mut out, [a, b, c * rim_w, 0.0, 0.0, 0.0], f.pos)?;
+                push_sign(out, [a, b, c * rim_w, 0.0, 0.0, 0.0], f.pos)?;
                 if c == 0.0 {
                     out.push(and_enable(f.pos));
                     continue;
@@ -288,7 +303,7 @@ pub fn hemisphere_polygon(
                 } else {
                     (q, LogicOp::AND)
                 };
-                push_sign(&mut out, q, f.inside)?;
+                push_sign(out, q, f.inside)?;
                 out.push(Command::Logic {
                     dst: f.t,
                     a: f.pos,
@@ -302,7 +317,7 @@ pub fn hemisphere_polygon(
                     pl = -pl;
                 }
                 let [a, b, c] = pl.to_array();
-                push_sign(&mut out, [a, b, 0.0, 0.0, 0.0, 0.0], f.pos)?;
+                push_sign(out, [a, b, 0.0, 0.0, 0.0, 0.0], f.pos)?;
                 if c == 0.0 {
                     // The seed assumes C < 0; an edge plane through the pole has only its line.
                     let third = verts[(i + 2) % m];
@@ -320,7 +335,7 @@ pub fn hemisphere_polygon(
                 }
                 let q = quad(a, b, c);
                 // INSIDE = Q <= 0.
-                push_sign(&mut out, q.map(|x| -x), f.inside)?;
+                push_sign(out, q.map(|x| -x), f.inside)?;
                 // The seed's CASE test: L0 > 0 and Q0 > 0 at the third vertex's point (u0, v0)
                 // of the disk. With C < 0 and w0 = sqrt(1 - u0^2 - v0^2), Q0 = (L0 - C w0)
                 // (L0 + C w0), so for a vertex above the horizon the test says L0 + C w0 > 0: the
@@ -404,7 +419,7 @@ pub fn hemisphere_polygon(
             dst: f.id,
             value: u64::from(id),
         });
-        return Ok(out);
+        return Ok(());
     }
     // The seed's Taylor option: w ~ 1 - (u^2 + v^2) / 2.
     let gamma = substitute_affine(
@@ -413,8 +428,8 @@ pub fn hemisphere_polygon(
         mo,
     );
     let gamma = QeeExpr::quantise(gamma, format).map_err(|_| Cull::Unrepresentable)?;
-    push_depth_and_id(&mut out, gamma, id, f);
-    Ok(out)
+    push_depth_and_id(out, gamma, id, f);
+    Ok(())
 }
 
 fn and_enable(b: Bit) -> Command {
@@ -695,7 +710,8 @@ impl Face {
 pub const HEMICUBE_NEAR: f64 = 1e-4;
 
 /// The commands that draw one receiver (vertices in the shooter's frame) on hemicube face `face`
-/// of `n` pixels across, or why it is culled. `origin` is the board's QEE origin for the face.
+/// of `n` pixels across, into `buffers.commands` (whose contents they replace), or why it is
+/// culled. `origin` is the board's QEE origin for the face.
 pub fn hemicube_polygon(
     verts: &[DVec3],
     id: u16,
@@ -703,18 +719,23 @@ pub fn hemicube_polygon(
     n: u32,
     f: &ViewFields,
     format: FixedFormat,
-) -> Result<Vec<Command>, Cull> {
+    buffers: &mut PolygonBuffers,
+) -> Result<(), Cull> {
     let (normal, d) = receiver_plane(verts)?;
     let (r, u, fw) = face.axes();
-    // Two buffers, swapped plane by plane (a fresh polygon per plane was 5 allocations of a
-    // receiver's 8 on each face).
-    let mut poly: Vec<DVec3> = Vec::with_capacity(verts.len() + 5);
+    let PolygonBuffers {
+        commands: out,
+        poly,
+        clipped,
+        screen,
+    } = buffers;
+    // Two buffers, swapped plane by plane.
+    poly.clear();
     poly.extend(
         verts
             .iter()
             .map(|v| DVec3::new(v.dot(r), v.dot(u), v.dot(fw))),
     );
-    let mut clipped: Vec<DVec3> = Vec::with_capacity(verts.len() + 5);
     // The face's frustum: Z >= near, -Z <= X <= Z, and -Z <= Y <= Z (top) or 0 <= Y <= Z (side).
     let y_low = match face {
         Face::Top => (DVec3::new(0.0, 1.0, 1.0), 0.0),
@@ -727,18 +748,19 @@ pub fn hemicube_polygon(
         (DVec3::new(0.0, -1.0, 1.0), 0.0),
         y_low,
     ] {
-        clip_to_half_space_into(&poly, plane, &mut clipped);
-        std::mem::swap(&mut poly, &mut clipped);
+        clip_to_half_space_into(poly, plane, clipped);
+        std::mem::swap(poly, clipped);
         if poly.len() < 3 {
             return Err(Cull::OutsideFace);
         }
     }
     // Pixel address s = (X/Z + 1) n/2 - 0.5, t likewise (rows of a side face start at n/2).
     let grid = Grid::new(n);
-    let screen: Vec<(f64, f64)> = poly
-        .iter()
-        .map(|p| (grid.pixel_of(p.x / p.z), grid.pixel_of(p.y / p.z)))
-        .collect();
+    screen.clear();
+    screen.extend(
+        poly.iter()
+            .map(|p| (grid.pixel_of(p.x / p.z), grid.pixel_of(p.y / p.z))),
+    );
     let area: f64 = (0..screen.len())
         .map(|i| {
             let (a, b) = (screen[i], screen[(i + 1) % screen.len()]);
@@ -749,7 +771,8 @@ pub fn hemicube_polygon(
         return Err(Cull::OutsideFace);
     }
     // As in hemisphere_polygon: the enable, one sign test an edge, the depth's and ID's.
-    let mut out = Vec::with_capacity(1 + screen.len() + MAX_DEPTH_AND_ID);
+    out.clear();
+    out.reserve(1 + screen.len() + MAX_DEPTH_AND_ID);
     out.push(Command::Logic {
         dst: Bit::Enable,
         a: f.view,
@@ -784,8 +807,8 @@ pub fn hemicube_polygon(
     let depth_scale = pow2(DEPTH_FRAC as i32 - format.frac_bits as i32);
     let lin = substitute_affine([a, b, c, 0.0, 0.0, 0.0].map(|x| x * depth_scale), k, m);
     let depth = QeeExpr::quantise(lin, format).map_err(|_| Cull::Unrepresentable)?;
-    push_depth_and_id(&mut out, depth, id, f);
-    Ok(out)
+    push_depth_and_id(out, depth, id, f);
+    Ok(())
 }
 
 /// Delta form factors of hemicube face `face` with an `n` x `n` top face, row-major over the
