@@ -189,19 +189,21 @@ impl Registers {
         out.clear();
         out.resize(self.enable.len(), 0);
         let mut k = 0;
-        // Four groups at a time: a view's enable is mostly zero once its first edges are drawn,
-        // and an all-zero run costs one test; elsewhere branch-free, writing every group and
-        // advancing past the enabled ones.
-        let mut chunks = self.enable.chunks_exact(4);
+        // Sixteen groups at a time: a view's enable is mostly zero once its first edges are
+        // drawn (a receiver's, a few rows of the board), and an all-zero run costs one test;
+        // elsewhere branch-free, writing every group and advancing past the enabled ones. The
+        // hemicube stream took 20.86 M instructions with four groups a test, 20.75 M with
+        // eight, 20.67 M with sixteen and 20.85 M with 32.
+        let mut chunks = self.enable.chunks_exact(16);
         let mut g = 0u32;
         for c in &mut chunks {
-            if (c[0] | c[1] | c[2] | c[3]) != 0 {
+            if c.iter().fold(0, |any, &en| any | en) != 0 {
                 for (i, &en) in c.iter().enumerate() {
                     out[k] = g + i as u32;
                     k += usize::from(en != 0);
                 }
             }
-            g += 4;
+            g += 16;
         }
         for (i, &en) in chunks.remainder().iter().enumerate() {
             out[k] = g + i as u32;
