@@ -87,7 +87,10 @@
 //! visits to a node form an arithmetic sequence: [`Ring::advance`] computes the next clock at
 //! which a capture can happen and jumps there, so an idle second costs no more than an idle clock.
 //! [`Ring::advance_clock_by_clock`] is the reference that visits every clock and moves tokens hop
-//! by hop; the tests check that both agree exactly.
+//! by hop; the tests check that both agree exactly. [`Ring::next_event_tick`] takes the decisions
+//! before the next event on a copy of the ring's state to find when it is; the ring keeps them
+//! (their clocks, captures and tokens) and [`Ring::advance`] replays them, neither searching nor
+//! deciding again, while nothing is sent or consumed.
 //!
 //! **Idle latency.** On an otherwise idle ring a one-packet message (payload
 //! `<= max_message_words`) sent at tick `sent` over `k` hops is delivered at
