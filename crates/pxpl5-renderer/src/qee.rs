@@ -123,8 +123,8 @@ pub fn pow2(e: i32) -> f64 {
 pub fn round(x: f64) -> f64 {
     const TWO_52: f64 = 4_503_599_627_370_496.0;
     let a = x.abs();
-    // Integers, infinities and NaN (for which the test is false): round changes none of them.
-    if !(a < TWO_52) {
+    // Integers, infinities and NaN (not below anything): round changes none of them.
+    if a.partial_cmp(&TWO_52) != Some(std::cmp::Ordering::Less) {
         return x;
     }
     let nearest = (a + TWO_52) - TWO_52;
