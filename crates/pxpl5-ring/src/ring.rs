@@ -191,10 +191,10 @@ pub struct Ring {
     /// look-ahead (1 M allocations in a hemicube run of the main job).
     caps: RefCell<Vec<Capture>>,
     lookahead: RefCell<Option<Flow>>,
-    /// The clocks [`Ring::next_event_tick`]'s look-ahead took decisions at, which
-    /// [`Ring::advance`] then takes again on the ring itself: read from here, they need no
-    /// [`engine::next_decision`] of their own (that search was 5.7 % of the main job's hemicube
-    /// instructions, more than half of it repeating the look-ahead's).
+    /// The decisions [`Ring::next_event_tick`]'s look-ahead took, which [`Ring::advance`] then
+    /// replays on the ring itself, neither searching for their clocks again
+    /// ([`engine::next_decision`], 5.7 % of the main job's hemicube instructions, more than half
+    /// of it repeating the look-ahead's) nor deciding them again.
     plan: RefCell<Plan>,
     holders: Vec<Option<Holder>>,
     /// Clock of each node's latest packet start (for the token-wait statistic).
