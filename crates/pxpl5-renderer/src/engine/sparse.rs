@@ -49,6 +49,8 @@
 //! Enable's solve is compiled for x86-64-v3 and portably, and [`pulp`] picks the build the CPU
 //! can run, as the `integer` level's group loops are; a test holds both to the same planes.
 
+use std::sync::Arc;
+
 use super::integer::{Hints, IntegerEngine, Unwrapped, may_wrap_within, sign_row};
 use super::{DepthTest, Geometry, PixelEngine, QeeSink, Registers, gated};
 use crate::command::{Anf, Bit, Cmp, Command, Field, LogicOp, Rect};
@@ -97,7 +99,8 @@ impl Value {
 /// A chain's start and what it has been ANDed with: enable at the chain's tip is
 /// `base AND conj[0] AND ...`, and a layer written after k conjuncts is gated by the first k.
 struct Epoch {
-    base: Vec<u64>,
+    /// Shared with `last_base` and the other epochs started from the same plane.
+    base: Arc<Vec<u64>>,
     /// The smallest area holding the base's set pixels (`bounding_area`).
     area: Option<Area>,
     /// Equal for two epochs exactly when their bases were found equal (`new_epoch`).
@@ -137,7 +140,9 @@ pub struct SparseEngine {
     /// Set when enable was materialised: the board's list of enabled groups is then stale.
     enable_materialised: bool,
     /// The base of the epoch started last, its area and its `base_id`.
-    last_base: (Vec<u64>, Option<Area>, u64),
+    last_base: (Arc<Vec<u64>>, Option<Area>, u64),
+    /// The base a freed epoch holds, so that it keeps no plane shared.
+    no_base: Arc<Vec<u64>>,
     /// `chain_plane`'s lists, kept from one receiver to the next.
     scratch: Scratch,
     /// The host instructions `materialise_enable`'s solve runs with, as the integer engine's
@@ -167,7 +172,8 @@ impl SparseEngine {
             epochs: Vec::new(),
             free: Vec::new(),
             enable_materialised: false,
-            last_base: (Vec::new(), None, 0),
+            last_base: (Arc::default(), None, 0),
+            no_base: Arc::default(),
             scratch: Scratch::default(),
             arch: pulp::Arch::new(),
         }
@@ -399,7 +405,7 @@ impl SparseEngine {
     }
 
     /// A new epoch starting from `base` (a materialised plane), counted once. Freed epochs keep
-    /// their buffers for the next: a receiver starts one (allocating each anew cost 1.4 % more
+    /// their lists for the next: a receiver starts one (allocating each anew cost 1.4 % more
     /// instructions on the hemisphere stream).
     fn new_epoch(&mut self, base: Base) -> u32 {
         if self.epochs.len() - self.free.len() >= MAX_EPOCHS {
@@ -411,7 +417,7 @@ impl SparseEngine {
             Some(e) => e,
             None => {
                 self.epochs.push(Epoch {
-                    base: Vec::new(),
+                    base: Arc::clone(&self.no_base),
                     area: None,
                     base_id: 0,
                     signs: Vec::new(),
@@ -422,22 +428,34 @@ impl SparseEngine {
             }
         };
         let regs = self.inner.registers();
-        let ep = &mut self.epochs[e as usize];
-        ep.base.clear();
-        match base {
-            Base::Constant(w) => ep.base.resize(self.geometry.groups, w),
-            Base::Plane(b) => ep.base.extend_from_slice(regs.plane(b)),
-        }
+        let groups = self.geometry.groups;
         // A chain most often starts from the plane the last one did (a view's disk, once a
-        // receiver): its area is then the last one's, found by a comparison rather than a scan
-        // of the plane (the scan was 4 % of `bench renderer`'s hemisphere stream), and a layer
-        // of one over a layer of the other compares ids, not planes (`push_layer`).
-        let (plane, area, id) = &mut self.last_base;
-        if ep.base != *plane {
-            plane.clone_from(&ep.base);
+        // receiver): its base is then the last one's, shared rather than copied (a copy a
+        // receiver was 1.3 % of `bench renderer`'s hemicube stream), its area the last one's,
+        // found by a comparison rather than a scan of the plane (the scan was 4 % of the
+        // hemisphere stream), and a layer of one over a layer of the other compares ids, not
+        // planes (`push_layer`).
+        let (last, area, id) = &mut self.last_base;
+        let same = match base {
+            Base::Constant(w) => last.len() == groups && last.iter().all(|&x| x == w),
+            Base::Plane(b) => last[..] == regs.plane(b)[..],
+        };
+        if !same {
+            // The last base's buffer, unless a live epoch still holds it.
+            if Arc::get_mut(last).is_none() {
+                *last = Arc::default();
+            }
+            let plane = Arc::get_mut(last).expect("a base no epoch holds");
+            plane.clear();
+            match base {
+                Base::Constant(w) => plane.resize(groups, w),
+                Base::Plane(b) => plane.extend_from_slice(regs.plane(b)),
+            }
             *area = bounding_area(plane, self.geometry);
             *id += 1;
         }
+        let ep = &mut self.epochs[e as usize];
+        ep.base = Arc::clone(last);
         ep.area = *area;
         ep.base_id = *id;
         ep.signs.clear();
@@ -447,9 +465,10 @@ impl SparseEngine {
     }
 
     fn release(&mut self, e: u32) {
-        let ep = self.epoch_mut(e);
+        let ep = &mut self.epochs[e as usize];
         ep.refs -= 1;
         if ep.refs == 0 {
+            ep.base = Arc::clone(&self.no_base);
             self.free.push(e);
         }
     }
@@ -545,7 +564,7 @@ impl SparseEngine {
     fn chain_plane(&self, e: u32, plane: &mut [u64], scratch: &mut Scratch) {
         let ep = self.epoch(e);
         if ep.conj.is_empty() {
-            plane.copy_from_slice(&ep.base);
+            plane.copy_from_slice(&ep.base[..]);
             return;
         }
         let g = self.geometry;
