@@ -188,8 +188,8 @@ impl View {
         cost.add(Op::ClipTest, verts.len() as u64);
         match self.kind {
             ViewKind::Disk { n } => {
-                let rule = (opts.edge_rule, opts.depth);
-                hemisphere_polygon(verts, id, n, rule, f, format, &mut buffers.commands)
+                let options = (opts.edge_rule, opts.depth);
+                hemisphere_polygon(verts, id, n, options, f, format, &mut buffers.commands)
             }
             ViewKind::Face { face, n } => {
                 if opts.skip_faces && !may_touch(verts, face) {
