@@ -289,7 +289,12 @@ fn sign_pixels(v: RowFn, window: Window, lo: usize, hi: usize, out: &mut [u64]) 
 /// `d` costs about 2 log2(d) + 2 evaluations (2.9 on average on the hemisphere stream). Always
 /// inlined: as a call per monotone piece (1.2 M on that stream) it cost 14 % more instructions.
 #[inline(always)]
-fn first_true(lo: usize, hi: usize, guess: usize, pred: impl Fn(usize) -> bool) -> usize {
+pub(super) fn first_true(
+    lo: usize,
+    hi: usize,
+    guess: usize,
+    pred: impl Fn(usize) -> bool,
+) -> usize {
     let g = guess.clamp(lo, hi);
     // First true in (f, t], knowing pred(t).
     let bisect = |mut f: usize, mut t: usize| {
