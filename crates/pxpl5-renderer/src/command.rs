@@ -144,6 +144,13 @@ impl Anf {
         let [c0, c1, c2, c3] = self.0;
         c0 ^ (c1 & b) ^ (c2 & a) ^ (c3 & a & b)
     }
+
+    /// [`Anf::apply`] on two words at once, each u128 holding two.
+    #[inline]
+    pub fn apply_wide(self, a: u128, b: u128) -> u128 {
+        let [c0, c1, c2, c3] = self.0.map(|c| u128::from(c) | (u128::from(c) << 64));
+        c0 ^ (c1 & b) ^ (c2 & a) ^ (c3 & a & b)
+    }
 }
 
 /// A comparison of two values, `lhs cmp rhs`.

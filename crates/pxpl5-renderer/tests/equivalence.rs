@@ -262,8 +262,14 @@ fn receivers() -> impl Strategy<Value = Vec<Command>> {
 /// rows it solves by the half-plane and the ellipse's box), the ellipse on or near the board at
 /// a random origin, with other ops now and then; each receiver's enable then read by a write.
 fn ellipse_receivers() -> impl Strategy<Value = Vec<Command>> {
+    ellipse_receivers_on(64, 16)
+}
+
+/// [`ellipse_receivers`] with windows for a board of `width` x `height` pixels, the ellipses'
+/// centres spread over its columns.
+fn ellipse_receivers_on(width: u32, height: u32) -> impl Strategy<Value = Vec<Command>> {
     let ellipse = (
-        -30i64..100,
+        -30i64..i64::from(width) + 36,
         -20i64..40,
         1i64..40,
         1i64..40,
@@ -278,9 +284,9 @@ fn ellipse_receivers() -> impl Strategy<Value = Vec<Command>> {
         any::<bool>(),
     );
     let receiver = (prop::collection::vec(edge, 1..6), any::<bool>());
-    (0u32..300, 0u32..300, prop::collection::vec(receiver, 1..5)).prop_map(|(ox, oy, rs)| {
+    (0u32..300, 0u32..300, prop::collection::vec(receiver, 1..5)).prop_map(move |(ox, oy, rs)| {
         let exact = |expr: QeeExpr| {
-            let w = expr.sign_window((ox, oy), 64, 16);
+            let w = expr.sign_window((ox, oy), width, height);
             if w.bits <= 64 {
                 w
             } else {
@@ -499,6 +505,17 @@ proptest! {
     #[test]
     fn sparse_agrees_with_bit_on_ellipse_receivers(commands in ellipse_receivers()) {
         run_both(&small(), &commands)?;
+    }
+
+    /// Rows of two groups, as on the seed's boards, where the row solver keeps a row in a
+    /// u128 (`Rows::and_step_two`).
+    #[test]
+    fn sparse_follows_integer_on_ellipse_receivers_on_two_group_rows(
+        commands in ellipse_receivers_on(128, 16)
+    ) {
+        let mut wide = small();
+        wide.width = 128;
+        sparse_follows_integer(&wide, &commands)?;
     }
 }
 
