@@ -214,9 +214,10 @@ impl PixelEngine for BitEngine {
         }
     }
 
-    fn read_values(&self, field: Field, rect: Rect) -> Vec<u64> {
+    fn read_values(&self, field: Field, rect: Rect, out: &mut Vec<u64>) {
         let per_row = self.geometry.groups_per_row;
-        let mut out = Vec::with_capacity((rect.width * rect.height) as usize);
+        out.clear();
+        out.reserve((rect.width * rect.height) as usize);
         for py in rect.y as usize..(rect.y + rect.height) as usize {
             for px in rect.x as usize..(rect.x + rect.width) as usize {
                 let g = py * per_row + px / 64;
@@ -227,7 +228,6 @@ impl PixelEngine for BitEngine {
                 out.push(v);
             }
         }
-        out
     }
 }
 

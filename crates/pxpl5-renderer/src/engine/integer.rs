@@ -1017,10 +1017,11 @@ impl PixelEngine for IntegerEngine {
         }
     }
 
-    fn read_values(&self, field: Field, rect: Rect) -> Vec<u64> {
+    fn read_values(&self, field: Field, rect: Rect, out: &mut Vec<u64>) {
         let a = Access::of(field);
         let (x0, x1) = (rect.x as usize, (rect.x + rect.width) as usize);
-        let mut out = Vec::with_capacity((rect.width * rect.height) as usize);
+        out.clear();
+        out.reserve((rect.width * rect.height) as usize);
         // A row's pixels are consecutive in a limb (pixel px of array row py is at
         // `py * width + px`): a row at a time, without an address per pixel (one cost 17
         // instructions a pixel of a hemicube's ID readback).
@@ -1038,7 +1039,6 @@ impl PixelEngine for IntegerEngine {
                 out.extend(lo.iter().map(|&l| (l >> a.shift) & a.mask));
             }
         }
-        out
     }
 }
 

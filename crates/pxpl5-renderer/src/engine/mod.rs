@@ -275,8 +275,9 @@ pub trait PixelEngine {
     fn read_planes(&self, field: Field) -> Vec<u64>;
     /// Overwrite the field of every pixel (not gated) from bit-planes.
     fn write_planes(&mut self, field: Field, planes: &[u64]);
-    /// The field's raw bits for the pixels of `rect`, row by row.
-    fn read_values(&self, field: Field, rect: Rect) -> Vec<u64>;
+    /// The field's raw bits for the pixels of `rect`, row by row, into `out` (its contents
+    /// replaced: a board reads back into one buffer, rather than a fresh one a readback).
+    fn read_values(&self, field: Field, rect: Rect, out: &mut Vec<u64>);
     /// Overwrite the field's raw bits for the pixels of `rect`, row by row (not gated).
     fn write_values(&mut self, field: Field, rect: Rect, values: &[u64]);
 }

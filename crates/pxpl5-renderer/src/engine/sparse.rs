@@ -1841,8 +1841,8 @@ impl PixelEngine for SparseEngine {
         self.inner.write_planes(field, planes)
     }
 
-    fn read_values(&self, field: Field, rect: Rect) -> Vec<u64> {
-        self.inner.read_values(field, rect)
+    fn read_values(&self, field: Field, rect: Rect, out: &mut Vec<u64>) {
+        self.inner.read_values(field, rect, out)
     }
 
     fn write_values(&mut self, field: Field, rect: Rect, values: &[u64]) {
