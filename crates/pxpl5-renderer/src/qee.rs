@@ -184,6 +184,10 @@ impl QeeExpr {
 
     /// Quantise real coefficients `[A, B, C, D, E, F]` to `format`, rounding to nearest (halves
     /// away from zero). An error names the coefficient that is not finite or does not fit.
+    /// Inlined: returned, the result was written a field at a time and copied whole by 16-byte
+    /// loads that cannot take 8-byte stores' values forwarded (`perf annotate`, a GP's
+    /// `quantise_for_sign`).
+    #[inline(always)]
     pub fn quantise(coefficients: [f64; 6], format: FixedFormat) -> Result<QeeExpr, QuantiseError> {
         let scale = pow2(format.frac_bits as i32);
         let max_raw = (1i64 << (format.int_bits + format.frac_bits)) - 1;

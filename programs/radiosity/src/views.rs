@@ -166,7 +166,10 @@ pub fn shot_scale(size: f64, nearest: f64) -> f64 {
 }
 
 /// Scale real coefficients so the largest magnitude is just under 2^int_bits, then quantise: for
-/// sign tests only (a positive factor keeps every sign).
+/// sign tests only (a positive factor keeps every sign). Inlined: its coefficients, made by the
+/// caller one at a time, were read back by 16-byte loads that cannot take 8-byte stores' values
+/// forwarded (`perf annotate`).
+#[inline(always)]
 pub fn quantise_for_sign(c: [f64; 6], f: FixedFormat) -> Option<QeeExpr> {
     let max = c.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     if !max.is_finite() || max == 0.0 {
