@@ -22,7 +22,7 @@ use pxpl5_sim::Tick;
 
 use crate::mesh::Patch;
 use crate::shot::{
-    CullCounts, FfOptions, ItemBuffers, Partial, Receiver, Shooter, Tags, WTables, shoot,
+    CullCounts, FfOptions, ItemBuffers, Kept, Partial, Receiver, Shooter, Tags, shoot,
 };
 use crate::views::shot_scale;
 
@@ -190,7 +190,7 @@ impl Program for FormFactorProgram {
                 std::slice::from_ref(&shooter),
                 &receivers,
                 &mut culls,
-                &mut WTables::default(),
+                &mut Kept::default(),
                 None,
             )
             .await?
@@ -473,7 +473,7 @@ impl Program for RadiosityProgram {
                 stopped: false,
             };
             let mut culls = CullCounts::default();
-            let mut w_tables = WTables::default();
+            let mut kept = Kept::default();
             // Shots taken so far: every GP counts the same picks.
             let mut taken = 0usize;
             let mut batches = 0usize;
@@ -539,7 +539,7 @@ impl Program for RadiosityProgram {
                     &shooters,
                     &receivers,
                     &mut culls,
-                    &mut w_tables,
+                    &mut kept,
                     items.as_ref(),
                 )
                 .await?;

@@ -512,15 +512,17 @@ struct IdSums {
 }
 
 impl IdSums {
-    /// Sums with room for IDs up to `max` (the largest receiver's): grown ID by ID as bands
+    /// Empty, with room for IDs up to `max` (the largest receiver's): grown ID by ID as bands
     /// came, the sums of a hemicube shot were reallocated about 300 times (2.1 M of the 1,418.6
-    /// M instructions of the main job's hemicube over 40 shots).
-    fn with_ids(max: u16) -> IdSums {
+    /// M instructions of the main job's hemicube over 40 shots). The buffers are kept from
+    /// shot to shot ([`Kept`]): made anew, they were two allocations a view a shot (110 K in the
+    /// main job's hemicube, half of them beyond the allocator's per-thread cache).
+    fn reset(&mut self, max: u16) {
         let n = usize::from(max) + 1;
-        IdSums {
-            sums: Vec::with_capacity(n),
-            seen: Vec::with_capacity(n),
-        }
+        self.sums.clear();
+        self.seen.clear();
+        self.sums.reserve(n);
+        self.seen.reserve(n);
     }
 
     /// `sums[id] += f` for each pixel's ID and value in order, from 0 for an ID not seen yet;
@@ -565,6 +567,18 @@ impl IdSums {
 #[derive(Debug, Default)]
 pub struct WTables {
     origins: BTreeMap<u32, (u32, u32)>,
+}
+
+/// What a GP keeps from one [`shoot`] to the next: GP 0's [`WTables`], and buffers every GP
+/// reuses (host work only: each shot overwrites what it reads of them).
+#[derive(Debug, Default)]
+pub struct Kept {
+    w_tables: WTables,
+    /// Sums per view, reset at each shot.
+    by_view: Vec<IdSums>,
+    /// The IDs of the readback message being summed.
+    ids: Vec<u64>,
+    polygons: PolygonBuffers,
 }
 
 /// Where a shot comes from.
@@ -620,9 +634,15 @@ pub async fn shoot(
     shooters: &[Shooter],
     receivers: &[Receiver],
     culls: &mut CullCounts,
-    w_tables: &mut WTables,
+    kept: &mut Kept,
     items: Option<&ItemBuffers>,
 ) -> Result<Vec<Partial>, ProgramError> {
+    let Kept {
+        w_tables,
+        by_view,
+        ids,
+        polygons: buffers,
+    } = kept;
     let rc = gp.renderer_config();
     let s = Setting {
         fields: ViewFields::allocate(rc.pixel_memory_bits)
@@ -640,9 +660,8 @@ pub async fn shoot(
     // Sums per view, added up in view order at the end, so the result does not depend on the
     // order the schedule delivers the bands in (floating-point sums are not associative).
     let max_id = receivers.iter().map(|r| r.id).max().unwrap_or(0);
-    let mut by_view: Vec<IdSums> = (0..views.len()).map(|_| IdSums::with_ids(max_id)).collect();
-    // The IDs of the readback message being summed, one buffer for all of them.
-    let mut ids = Vec::new();
+    by_view.resize_with(views.len(), IdSums::default);
+    by_view.iter_mut().for_each(|sums| sums.reset(max_id));
     let mut coordinator = (g == 0).then(|| Coordinator::new(views.len(), renderers, s.gps));
     if let Some(c) = coordinator.as_mut() {
         gp.phase("renderer setup");
@@ -660,7 +679,6 @@ pub async fn shoot(
     // queueing behind one slow board.
     let mut drawing: VecDeque<Drawing> = VecDeque::new();
     let mut gather = Gather::default();
-    let mut buffers = PolygonBuffers::default();
     while !left.finished()
         || gather.complete < gather.announced
         || coordinator.as_ref().is_some_and(|c| !c.finished())
@@ -677,7 +695,7 @@ pub async fn shoot(
         let Some(m) = m else {
             let pick = g as usize % drawing.len();
             let mut d = drawing.remove(pick).expect("drawing is not empty");
-            match draw.step(gp, &mut d, culls, &mut buffers).await {
+            match draw.step(gp, &mut d, culls, buffers).await {
                 Step::Sent => drawing.insert(pick, d),
                 Step::Probed => left.draws -= 1,
                 Step::Nothing => {
@@ -721,7 +739,7 @@ pub async fn shoot(
             Event::Band { view } => {
                 gp.phase("accumulate");
                 let sums = &mut by_view[view];
-                let count = accumulate(gp, (&s, &views[view]), &m, sums, &mut ids).await?;
+                let count = accumulate(gp, (&s, &views[view]), &m, sums, ids).await?;
                 if let Some(items) = items {
                     keep_item_buffer(items, &views[view], &m, &s);
                 }
@@ -733,7 +751,7 @@ pub async fn shoot(
         return Ok(exact_partials(shooters, receivers));
     }
     let mut partial = vec![Partial::new(); shooters.len()];
-    for (v, sums) in views.iter().zip(by_view) {
+    for (v, sums) in views.iter().zip(by_view.iter()) {
         for (id, f) in sums.iter() {
             *partial[v.shooter].entry(id).or_default() += f;
         }
