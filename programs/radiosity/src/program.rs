@@ -761,13 +761,7 @@ mod tests {
     #[test]
     fn parts_are_summed_in_ascending_order_whatever_their_arrival() {
         let values = [1e16, 1.0, 1.0, -1e16, 0.1, -0.0, 0.0, 3e-17, 2.5];
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut rng = pxpl5_geom::rng::Lcg::new(0x9e37_79b9_7f4a_7c15);
         let mut parts: Vec<((usize, usize), f64)> = (0..60)
             .map(|i| ((i % 3, i % 4), values[i % values.len()]))
             .collect();
@@ -784,7 +778,7 @@ mod tests {
             .collect();
         for _ in 0..20 {
             for i in (1..parts.len()).rev() {
-                parts.swap(i, next() as usize % (i + 1));
+                parts.swap(i, rng.next_u64() as usize % (i + 1));
             }
             let got: BTreeMap<(usize, usize), u64> = sum_in_order(parts.clone())
                 .into_iter()
