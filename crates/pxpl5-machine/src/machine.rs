@@ -34,7 +34,7 @@ use pxpl5_renderer::Workers;
 use pxpl5_ring::{MessageId, Ring, RingError};
 use pxpl5_sim::{ClockDomain, ComponentId, EventQueue, Priority, Tick};
 
-use crate::critical::{Cat, Categories, Fixed, PathPart, Profile, Resource};
+use crate::critical::{Cat, Categories, Fixed, PathPart, Profile, Resource, SpareProfiles};
 use crate::delivery::{Arrival, Delivery, Route, Sent};
 use crate::frame_buffer::FrameBufferImage;
 use crate::gp::{Gp, Payload, PhaseMark, Program, Shared, Unit};
@@ -88,6 +88,8 @@ pub struct Machine {
     /// back: a wake-up, a message, words freed at their node (`Ring::take_freed_nodes`).
     gp_ready: Ready,
     renderers: Vec<RendererNode>,
+    /// The boxes the messages' critical paths travel in, kept (host work only).
+    spare_profiles: SpareProfiles,
     frame: FrameBufferImage,
     events: EventQueue<Event>,
     delivery: Delivery,
@@ -183,6 +185,7 @@ impl Machine {
             kinds: vec![None; pxpl5_renderer::Command::KINDS.len()],
             _workers: workers,
             host: HostWork::default(),
+            spare_profiles: SpareProfiles::default(),
             cfg: cfg.clone(),
             units,
             positions,
@@ -359,7 +362,7 @@ impl Machine {
                     );
                     let sent = Sent {
                         at: self.now,
-                        profile: Box::new(node.profile.clone()),
+                        profile: self.spare_profiles.copy(&node.profile),
                     };
                     self.recorder
                         .message_sent(taken.0, Unit::Gp(g as u32), self.now);
@@ -498,9 +501,10 @@ impl Machine {
                 let node = &mut self.gps[g as usize];
                 if let Some(until) = node.deliver(self.now, message, &self.cfg.gp.costs) {
                     // The GP waited for this message: its path runs through it.
-                    node.profile = *arrived;
+                    std::mem::swap(&mut node.profile, &mut arrived);
                     self.gp_busy(g, until, Busy::Receive);
                 }
+                self.spare_profiles.keep(arrived);
                 self.gp_mark(g as usize);
             }
             Unit::Renderer(r) => match message.payload {
@@ -510,9 +514,13 @@ impl Machine {
                         self.consume(id);
                     }
                 }
-                _ => self.consume(id),
+                _ => {
+                    self.spare_profiles.keep(arrived);
+                    self.consume(id);
+                }
             },
             Unit::FrameBuffer => {
+                self.spare_profiles.keep(arrived);
                 self.consume(id);
                 if let Payload::Pixels {
                     tag,
@@ -525,7 +533,10 @@ impl Machine {
                         .write_pixels(tag, rect, bits, &words, self.cfg.ring.word_bits);
                 }
             }
-            Unit::Host => self.consume(id),
+            Unit::Host => {
+                self.spare_profiles.keep(arrived);
+                self.consume(id);
+            }
         }
     }
 
@@ -561,7 +572,7 @@ impl Machine {
                 .expect("the outgoing message offered a moment ago");
             let sent = Sent {
                 at: self.now,
-                profile: Box::new(node.profile.plus_by(
+                profile: self.spare_profiles.boxed(node.profile.plus_by(
                     self.fixed.readback_waits,
                     self.now - node.last_end,
                     Unit::Renderer(r),
@@ -644,14 +655,18 @@ impl Machine {
             Some((at, mut path)) if at > node.last_end => {
                 path.add_by(self.fixed.stall, started.start - at, unit);
                 path.add_by(kind, run, unit);
-                node.profile = *path;
+                std::mem::swap(&mut node.profile, &mut path);
+                self.spare_profiles.keep(path);
             }
             // The board's own previous command is the cause: its path grows in place (a copy of
             // the 400-byte profile per command was 1.5 % of a radiosity run's instructions).
-            _ => {
+            arrival => {
                 let idle = started.start - node.last_end;
                 node.profile.add_by(wait, idle, unit);
                 node.profile.add_by(kind, run, unit);
+                if let Some((_, path)) = arrival {
+                    self.spare_profiles.keep(path);
+                }
             }
         }
         node.last_end = started.end;
