@@ -2095,7 +2095,7 @@ mod tests {
         let mut r = 0x2545_f491_4f6c_dd1du64;
         for i in 0..6000 {
             // k2 (t - peak)^2 + k0, with an odd linear term now and then, scaled by 2^shift
-            // (and then offset in its low bits) from the third pass on.
+            // (and then offset in its low bits) in the last 2,000 cases.
             let shift = if i < 4000 {
                 0
             } else {
