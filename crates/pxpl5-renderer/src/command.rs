@@ -141,16 +141,24 @@ pub struct Anf([u64; 4]);
 impl Anf {
     #[inline]
     pub fn apply(self, a: u64, b: u64) -> u64 {
-        let [c0, c1, c2, c3] = self.0;
-        c0 ^ (c1 & b) ^ (c2 & a) ^ (c3 & a & b)
+        anf(self.0, a, b)
     }
 
     /// [`Anf::apply`] on two words at once, each u128 holding two.
     #[inline]
     pub fn apply_wide(self, a: u128, b: u128) -> u128 {
-        let [c0, c1, c2, c3] = self.0.map(|c| u128::from(c) | (u128::from(c) << 64));
-        c0 ^ (c1 & b) ^ (c2 & a) ^ (c3 & a & b)
+        anf(self.0.map(|c| u128::from(c) | (u128::from(c) << 64)), a, b)
     }
+}
+
+/// The algebraic normal form `c0 ^ c1 b ^ c2 a ^ c3 a b` on words of any width: the one home of
+/// the formula [`Anf::apply`] and [`Anf::apply_wide`] share.
+#[inline(always)]
+fn anf<T>([c0, c1, c2, c3]: [T; 4], a: T, b: T) -> T
+where
+    T: Copy + std::ops::BitAnd<Output = T> + std::ops::BitXor<Output = T>,
+{
+    c0 ^ (c1 & b) ^ (c2 & a) ^ (c3 & a & b)
 }
 
 /// A comparison of two values, `lhs cmp rhs`.
