@@ -73,6 +73,98 @@ struct GpPhase {
     end: Tick,
 }
 
+/// Each phase name's figures, summed as the marks come: the stats' phase spans.
+///
+/// Summed at the mark, not from a list of marks at the run's end: the main job's hemicube
+/// marks hundreds of thousands of phases, and a list of them (kept only for a trace, which
+/// draws every GP's phases) took page faults as it grew and a pass at the end (together about
+/// 1.5 % of its CPU time by `perf record -e cpu-clock`). The figures are the same: a phase's
+/// time is added, and its ends compared, whatever the order.
+#[derive(Default)]
+struct PhaseSums {
+    /// Per name, in order of its first mark.
+    sums: Vec<PhaseSum>,
+    /// Per GP: its open phase (name, start) and how many marks it has made.
+    open: Vec<(Option<(&'static str, Tick)>, usize)>,
+}
+
+/// One phase name's figures so far, and where it first appears in GP-major order.
+#[derive(Clone, Copy)]
+struct PhaseSum {
+    name: &'static str,
+    first_start: Tick,
+    last_end: Tick,
+    gp_time: Tick,
+    first_seen: (u32, usize),
+}
+
+impl PhaseSum {
+    /// A phase of this name lasted from `start` to `stop`.
+    fn close(&mut self, start: Tick, stop: Tick) {
+        self.first_start = self.first_start.min(start);
+        self.last_end = self.last_end.max(stop);
+        self.gp_time += stop - start;
+    }
+}
+
+impl PhaseSums {
+    /// The figures of phase `name`. Names are `'static` and nearly always the same literal:
+    /// compared by address first.
+    fn find<'a>(sums: &'a mut [PhaseSum], name: &'static str) -> Option<&'a mut PhaseSum> {
+        sums.iter_mut()
+            .find(|a| std::ptr::eq(a.name, name) || a.name == name)
+    }
+
+    /// GP `gp` marked phase `name` at `at`: its open phase ends there.
+    fn mark(&mut self, gp: u32, name: &'static str, at: Tick) {
+        let g = gp as usize;
+        if self.open.len() <= g {
+            self.open.resize(g + 1, (None, 0));
+        }
+        let (current, count) = &mut self.open[g];
+        if let Some((was, start)) = current.take() {
+            Self::find(&mut self.sums, was)
+                .expect("a phase's name was seen at its mark")
+                .close(start, at);
+        }
+        let seen = (gp, *count);
+        *count += 1;
+        *current = Some((name, at));
+        match Self::find(&mut self.sums, name) {
+            Some(a) => a.first_seen = a.first_seen.min(seen),
+            None => self.sums.push(PhaseSum {
+                name,
+                first_start: at,
+                last_end: at,
+                gp_time: Tick::ZERO,
+                first_seen: seen,
+            }),
+        }
+    }
+
+    /// The spans, each GP's open phase ended at its program's end (`gp_end`) or the run's.
+    fn spans(&self, gp_end: &BTreeMap<u32, Tick>, end: Tick) -> Vec<PhaseSpan> {
+        let mut sums = self.sums.clone();
+        for (g, (current, _)) in self.open.iter().enumerate() {
+            if let Some((name, start)) = *current {
+                let stop = gp_end.get(&(g as u32)).copied().unwrap_or(end);
+                Self::find(&mut sums, name)
+                    .expect("a phase's name was seen at its mark")
+                    .close(start, stop);
+            }
+        }
+        sums.sort_by_key(|a| a.first_seen);
+        sums.into_iter()
+            .map(|a| PhaseSpan {
+                name: a.name.to_string(),
+                first_start: a.first_start,
+                last_end: a.last_end,
+                gp_time: a.gp_time,
+            })
+            .collect()
+    }
+}
+
 struct Signals {
     gp: Vec<SignalId>,
     renderer: Vec<SignalId>,
@@ -117,8 +209,10 @@ pub struct Recorder {
     signals: Option<Signals>,
     flows: Flows,
     units: Vec<Unit>,
-    /// Phase marks in mark order.
+    /// Phase marks in mark order, for an event trace's phase slices.
     marks: Vec<Mark>,
+    /// The phases' figures, for the stats.
+    phase_sums: PhaseSums,
     /// GP end times, for the last phase's end.
     gp_end: BTreeMap<u32, Tick>,
     /// Last sampled output- and input-queue occupancy per node.
@@ -308,7 +402,10 @@ impl Recorder {
     }
 
     pub(crate) fn phase(&mut self, gp: u32, name: &'static str, at: Tick) {
-        self.marks.push(Mark { gp, name, at });
+        self.phase_sums.mark(gp, name, at);
+        if self.trace.is_some() {
+            self.marks.push(Mark { gp, name, at });
+        }
     }
 
     pub(crate) fn gp_busy(&mut self, gp: u32, start: Tick, end: Tick, busy: Busy) {
@@ -538,76 +635,10 @@ impl Recorder {
     }
 
     /// Per-phase spans: for each phase name in order of first appearance (GP 0's marks first),
-    /// its first start, last end and the GP time spent in it summed over GPs.
-    ///
-    /// One pass over the marks in mark order (each GP's in its own time order), with no list of
-    /// every GP's phases between (`gp_phases`, which the trace draws): the main job's hemicube
-    /// marks hundreds of thousands of phases, and listing them, grouping them by GP and finding
-    /// each one's name by comparing strings (and listing them again at `close` for a trace
-    /// there was not) took 0.8 % of its CPU time by `perf record -e cpu-clock`, and string
-    /// compares more. The figures are the same: a phase's time is added, and its ends
-    /// compared, whatever the order.
+    /// its first start, last end and the GP time spent in it summed over GPs (see
+    /// [`PhaseSums`]).
     pub(crate) fn phase_spans(&self, end: Tick) -> Vec<PhaseSpan> {
-        /// A name's figures so far, and where it first appears in GP-major order.
-        struct Acc {
-            name: &'static str,
-            first_start: Tick,
-            last_end: Tick,
-            gp_time: Tick,
-            first_seen: (u32, usize),
-        }
-        // Names are `'static` and nearly always the same literal: compared by address first.
-        fn find<'a>(accs: &'a mut [Acc], name: &'static str) -> Option<&'a mut Acc> {
-            accs.iter_mut()
-                .find(|a| std::ptr::eq(a.name, name) || a.name == name)
-        }
-        let mut accs: Vec<Acc> = Vec::new();
-        // Per GP: its open phase (name, start) and how many marks it has made.
-        let mut open: Vec<(Option<(&'static str, Tick)>, usize)> = Vec::new();
-        let close = |accs: &mut Vec<Acc>, name: &'static str, start: Tick, stop: Tick| {
-            let a = find(accs, name).expect("a phase's name was seen at its mark");
-            a.first_start = a.first_start.min(start);
-            a.last_end = a.last_end.max(stop);
-            a.gp_time += stop - start;
-        };
-        for m in &self.marks {
-            let g = m.gp as usize;
-            if open.len() <= g {
-                open.resize(g + 1, (None, 0));
-            }
-            let (current, count) = &mut open[g];
-            if let Some((name, start)) = current.take() {
-                close(&mut accs, name, start, m.at);
-            }
-            let seen = (m.gp, *count);
-            *count += 1;
-            *current = Some((m.name, m.at));
-            match find(&mut accs, m.name) {
-                Some(a) => a.first_seen = a.first_seen.min(seen),
-                None => accs.push(Acc {
-                    name: m.name,
-                    first_start: m.at,
-                    last_end: m.at,
-                    gp_time: Tick::ZERO,
-                    first_seen: seen,
-                }),
-            }
-        }
-        for (g, (current, _)) in open.iter().enumerate() {
-            if let Some((name, start)) = *current {
-                let gp_end = self.gp_end.get(&(g as u32)).copied().unwrap_or(end);
-                close(&mut accs, name, start, gp_end);
-            }
-        }
-        accs.sort_by_key(|a| a.first_seen);
-        accs.into_iter()
-            .map(|a| PhaseSpan {
-                name: a.name.to_string(),
-                first_start: a.first_start,
-                last_end: a.last_end,
-                gp_time: a.gp_time,
-            })
-            .collect()
+        self.phase_sums.spans(&self.gp_end, end)
     }
 
     /// Whether anything is recorded: an event trace or a VCD, which sample the ring at every
@@ -750,7 +781,8 @@ mod tests {
             steps in prop::collection::vec((0u32..4, 0usize..4, 0u64..50), 0..60),
             finished in prop::collection::vec(any::<bool>(), 4),
         ) {
-            let mut r = Recorder::default();
+            // Traced: only a trace keeps the marks the listed phases are drawn from.
+            let mut r = Recorder::new(Some(TraceWindow::all()), None);
             let mut at = Tick::ZERO;
             for &(gp, name, dt) in &steps {
                 at += Tick(dt);
