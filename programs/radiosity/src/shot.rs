@@ -1216,7 +1216,7 @@ async fn accumulate(
         return Err(unexpected(gp.index(), m));
     };
     let count = (rect.width * rect.height) as usize;
-    readback::unpack_into(words, *bits, s.word_bits, count, ids);
+    let ids = readback::unpack_into(words, *bits, s.word_bits, count, ids);
     gp.work(|cost| {
         cost.add(Op::FfAccumulatePerPixel, count as u64);
         // Row by row, in pixel order (the sums' order of addition is the result's): no
