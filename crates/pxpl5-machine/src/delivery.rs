@@ -38,10 +38,16 @@ pub(crate) struct Outgoing {
 
 impl Outgoing {
     pub fn new(to: Unit, payload: Payload) -> Outgoing {
+        Outgoing::counted(to, payload, None)
+    }
+
+    /// A message whose `words` its sender counted, if it did (as [`crate::machine`]'s
+    /// `ring_words` would, at least 1).
+    pub fn counted(to: Unit, payload: Payload, words: Option<u32>) -> Outgoing {
         Outgoing {
             to,
             payload,
-            words: None,
+            words: words.map(|w| w.max(1)),
             refused: None,
         }
     }

@@ -218,9 +218,10 @@ impl GpNode {
                 };
                 GpStep::Busy(self.busy(now, c, None), Busy::Compute)
             }
-            Some(Request::Send(to, payload)) => {
+            Some(Request::Send { to, payload, words }) => {
                 let c = Cycles(costs.message_send);
-                let until = self.busy(now, c, Some(Outgoing::new(to, payload)));
+                let out = Outgoing::counted(to, payload, words);
+                let until = self.busy(now, c, Some(out));
                 GpStep::Busy(until, Busy::Send)
             }
             Some(Request::Recv) => {

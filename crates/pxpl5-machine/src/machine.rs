@@ -339,6 +339,7 @@ impl Machine {
                 let words = *out
                     .words
                     .get_or_insert_with(|| ring_words(&self.cfg, &out.payload));
+                debug_assert_eq!(words, ring_words(&self.cfg, &out.payload), "GP {g}'s count");
                 let mut refused = out.refused;
                 let offered = self.offer(Unit::Gp(g as u32), to, words, &mut refused)?;
                 if let GpState::BlockedSend(out) = &mut self.gps[g].state {
