@@ -234,9 +234,12 @@ impl Machine {
         }
         // Instants since the monitor was last looked at (see `crate::monitor`).
         let mut unwatched = 0u64;
+        // Whether the instant delivered a message or ran an event (the first instant starts
+        // every unit).
+        let mut acted = true;
         loop {
             self.host.instants += 1;
-            self.step_units()?;
+            self.step_units(acted)?;
             if self.gps.iter().all(|g| g.state == GpState::Done) && self.quiescent() {
                 break;
             }
@@ -278,6 +281,7 @@ impl Machine {
             self.ring.advance(next);
             let mut deliveries = std::mem::take(&mut self.deliveries);
             self.ring.take_deliveries_into(&mut deliveries);
+            acted = !deliveries.is_empty();
             for d in deliveries.drain(..) {
                 progress = true;
                 self.deliver(d)?;
@@ -285,6 +289,7 @@ impl Machine {
             self.deliveries = deliveries;
             while self.events.peek_tick() == Some(next) {
                 progress = true;
+                acted = true;
                 let e = self.events.pop().expect("peeked");
                 match e.payload {
                     Event::RendererDone(r) => self.renderer_done(r),
@@ -305,18 +310,31 @@ impl Machine {
     }
 
     /// Steps 3 to 5 of the loop at the current instant, repeated until nothing changes (a GP's
-    /// send can make a Renderer runnable and so on, all at the same instant).
-    fn step_units(&mut self) -> Result<(), RunError> {
+    /// send can make a Renderer runnable and so on, all at the same instant). `acted`: whether
+    /// the instant delivered a message or ran an event.
+    fn step_units(&mut self, acted: bool) -> Result<(), RunError> {
         // A refused send may go now if its node's output queue freed words (only the ring's
         // advance frees them, before this step).
-        let (units, gps, ready) = (&self.units, &self.gps, &mut self.gp_ready);
-        self.ring.take_freed_nodes(|node| {
-            if let Some(&Unit::Gp(g)) = units.get(node.0 as usize)
-                && matches!(gps[g as usize].state, GpState::BlockedSend(_))
-            {
-                ready.set(g as usize, true);
-            }
-        });
+        let (units, gps, renderers, ready) =
+            (&self.units, &self.gps, &self.renderers, &mut self.gp_ready);
+        let mut woke = false;
+        self.ring
+            .take_freed_nodes(|node| match units.get(node.0 as usize) {
+                Some(&Unit::Gp(g)) if matches!(gps[g as usize].state, GpState::BlockedSend(_)) => {
+                    ready.set(g as usize, true);
+                    woke = true;
+                }
+                Some(&Unit::Renderer(r)) if renderers[r as usize].has_outgoing() => woke = true,
+                _ => {}
+            });
+        // An instant of the ring alone (its output queues freed words no sender waits for):
+        // every unit is as the last round left it, with nothing to do, since a Renderer's next
+        // command waits only for a delivery or its completion's event, and a GP for an event, a
+        // delivery or its queue's space. A fifth of the main job's instants are such, each a
+        // round over every Renderer and the GPs.
+        if !acted && !woke {
+            return Ok(());
+        }
         loop {
             let mut progress = false;
             for r in 0..self.renderers.len() {

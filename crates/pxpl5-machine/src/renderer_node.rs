@@ -159,6 +159,11 @@ impl RendererNode {
         self.queue.is_empty() && self.running.is_none() && self.outbox.is_empty()
     }
 
+    /// Whether readback messages wait for the ring.
+    pub fn has_outgoing(&self) -> bool {
+        !self.outbox.is_empty()
+    }
+
     /// The oldest readback message waiting for the ring.
     pub fn next_outgoing(&mut self) -> Option<&mut Outgoing> {
         self.outbox.front_mut()
