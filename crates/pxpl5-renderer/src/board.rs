@@ -206,6 +206,10 @@ struct Transfer {
     done: Cycles,
 }
 
+/// The board's pixel engine, at its fidelity level. One per board, in its boxed [`Pixels`],
+/// which a worker adopts at most once: the levels' different sizes cost nothing, where boxing
+/// the largest would add an indirection to every command.
+#[allow(clippy::large_enum_variant)]
 enum Engine {
     Bit(BitEngine),
     Integer(IntegerEngine),

@@ -157,6 +157,8 @@ pub struct SparseEngine {
 struct Scratch {
     steps: Vec<Step>,
     bounds: Vec<Bound>,
+    /// The bounds' ellipses, which a bound names by index.
+    ellipses: Vec<BoundEllipse>,
     half_planes: Vec<[i64; 3]>,
     bands: Vec<BandBound>,
     spans: Vec<(i64, i64)>,
@@ -571,6 +573,7 @@ impl SparseEngine {
         let Scratch {
             steps,
             bounds,
+            ellipses,
             half_planes,
             bands,
             spans,
@@ -597,7 +600,12 @@ impl SparseEngine {
         // polygon's box. The ellipses took the hemisphere stream's rows solved from 84 to 58 a
         // receiver (8 of them with pixels left) and its instructions from 76.4 M to 64.9 M.
         bounds.clear();
-        bounds.extend(steps.iter().filter_map(|s| s.bound(&ep.signs, area)));
+        ellipses.clear();
+        bounds.extend(
+            steps
+                .iter()
+                .filter_map(|s| s.bound(&ep.signs, area, ellipses)),
+        );
         let Some(area) = bounds
             .iter()
             .chain(bounds.iter())
@@ -622,13 +630,11 @@ impl SparseEngine {
         }
         // The seed's 128-pixel row is two groups: buffers whose length the compiler knows are
         // cleared by two stores where a slice's `fill` is a `memset` call.
-        // Bands are halved only about an ellipse (`and_rows`).
-        let ellipses = bounds
-            .iter()
-            .any(|b| matches!(b, Bound::Half(_, _, Some(_)) | Bound::HalfOrBox(..)));
+        // Bands are halved only about an ellipse (`and_rows`): a bound has one where it
+        // listed one.
         bands.clear();
-        if ellipses {
-            bands.extend(bounds.iter().filter_map(BandBound::of));
+        if !ellipses.is_empty() {
+            bands.extend(bounds.iter().filter_map(|b| BandBound::of(b, ellipses)));
         }
         let steps = (&steps[..], &bands[..]);
         match g.groups_per_row {
@@ -961,7 +967,13 @@ impl Step {
     /// test's value p leaves the step false for one value q0 of the second (`op(p, q0)` = 0 for
     /// p = p0), the first test's half-plane of !p0 together with the box of `area` that holds
     /// the pixels of the second's ellipse of !q0.
-    fn bound(&self, signs: &[SignTerm], area: Area) -> Option<Bound> {
+    /// An ellipse it names goes onto `ellipses`.
+    fn bound(
+        &self,
+        signs: &[SignTerm],
+        area: Area,
+        ellipses: &mut Vec<BoundEllipse>,
+    ) -> Option<Bound> {
         if let Some(h) = self.half_plane(signs) {
             // A step of one test is `op(p, 0)` (`Step::of`), neither constant: then it is p or
             // !p, exactly its half-plane.
@@ -975,7 +987,8 @@ impl Step {
                 .into_iter()
                 .find(|&q0| !eval(self.op, p1, q0))
                 .filter(|_| !exact && !second.checks)
-                .and_then(|q0| Ellipse::of(second, !q0));
+                .and_then(|q0| Ellipse::of(second, !q0))
+                .map(|e| BoundEllipse::push(ellipses, e, None));
             return Some(Bound::Half(h, exact, cut));
         }
         if self.first == self.second || signs[self.second as usize].checks {
@@ -988,7 +1001,13 @@ impl Step {
             .find_map(|[p0, q0]| {
                 let h = side(&signs[self.first as usize], !p0)?;
                 let e = Ellipse::of(&signs[self.second as usize], q0)?;
-                Some(Bound::HalfOrBox(h, e.box_in(area), e))
+                let axes = e.axes();
+                let area = e.box_in(area, axes.as_ref());
+                Some(Bound::HalfOrBox(
+                    h,
+                    area,
+                    BoundEllipse::push(ellipses, e, axes),
+                ))
             })
     }
 }
@@ -1011,14 +1030,32 @@ fn side(t: &SignTerm, positive: bool) -> Option<[i64; 3]> {
     })
 }
 
-/// A region outside which a step is false, in board pixel coordinates.
+/// A region outside which a step is false, in board pixel coordinates. Its ellipse is named by
+/// its index in the chain's list ([`BoundEllipse`]): held here, an ellipse (96 bytes, its axes
+/// as many again) made every bound several times larger, and the hemicube's, which have none,
+/// were copied the slower.
 enum Bound {
     /// `k0 + kx px + ky py >= 0`; whether the step is exactly that half-plane, not only false
     /// outside it; and an ellipse inside which it is false, where it has one.
-    Half([i64; 3], bool, Option<Ellipse>),
+    Half([i64; 3], bool, Option<u32>),
     /// The half-plane, or the box that holds an ellipse's pixels (`None`: it has none), and
     /// the ellipse.
-    HalfOrBox([i64; 3], Option<Area>, Ellipse),
+    HalfOrBox([i64; 3], Option<Area>, u32),
+}
+
+/// An ellipse of a chain's bounds, and its [`Axes`] if they were found and fit (a
+/// [`Bound::HalfOrBox`]'s, for its box).
+struct BoundEllipse {
+    e: Ellipse,
+    axes: Option<Axes>,
+}
+
+impl BoundEllipse {
+    /// Put ellipse `e` on the chain's list; its index.
+    fn push(list: &mut Vec<BoundEllipse>, e: Ellipse, axes: Option<Axes>) -> u32 {
+        list.push(BoundEllipse { e, axes });
+        list.len() as u32 - 1
+    }
 }
 
 impl Bound {
@@ -1027,7 +1064,7 @@ impl Bound {
     fn narrow(&self, area: Area) -> Option<Area> {
         match self {
             Bound::Half(h, ..) => narrow(*h, area),
-            Bound::HalfOrBox(h, e, _) => {
+            Bound::HalfOrBox(h, e, ..) => {
                 let e = e.and_then(|e| e.meet(area));
                 match (narrow(*h, area), e) {
                     (Some(a), Some(b)) => Some(a.hull(b)),
@@ -1090,16 +1127,35 @@ impl Ellipse {
         (d < 0 && f < 0 && definite).then_some(Ellipse { k })
     }
 
-    /// The smallest box of `area`'s rows and columns that holds every real point of the
-    /// ellipse inside `area`'s box; `None` if no row (or no column) of it meets the ellipse. A
-    /// row py meets it where `V(., py)`, a concave quadratic, reaches 0: where its discriminant
-    /// `(a + e py)^2 - 4 d (c + b py + f py^2)` is at least 0 (likewise a column). Exact in
-    /// i128; if anything would overflow, `area` itself.
-    fn box_in(&self, area: Area) -> Option<Area> {
+    /// Its rows' discriminant `(a + e py)^2 - 4 d (c + b py + f py^2)` (a row py meets the
+    /// ellipse where it is at least 0) and its columns' (likewise); `None` if either overflows.
+    /// Found once for an ellipse's box, its chords and its extremes (each found them again:
+    /// 1.6 % of `bench renderer`'s hemisphere stream's instructions).
+    fn axes(&self) -> Option<Axes> {
+        Some(Axes {
+            rows: self.rows()?,
+            cols: self.cols()?,
+        })
+    }
+
+    /// Its rows' discriminant alone (see [`Ellipse::axes`]).
+    fn rows(&self) -> Option<Concave> {
         let [a, b, c, d, e, f] = self.k;
-        let rows = Concave::discriminant(a, e, d, b, f, c);
-        let cols = Concave::discriminant(b, e, f, a, d, c);
-        let (Some(rows), Some(cols)) = (rows, cols) else {
+        Concave::discriminant(a, e, d, b, f, c)
+    }
+
+    /// Its columns' discriminant alone (see [`Ellipse::axes`]).
+    fn cols(&self) -> Option<Concave> {
+        let [a, b, c, d, e, f] = self.k;
+        Concave::discriminant(b, e, f, a, d, c)
+    }
+
+    /// The smallest box of `area`'s rows and columns that holds every real point of the
+    /// ellipse inside `area`'s box; `None` if no row (or no column) of it meets the ellipse,
+    /// by its `axes` (`Ellipse::axes`). Exact in i128; without axes, or if anything would
+    /// overflow, `area` itself.
+    fn box_in(&self, area: Area, axes: Option<&Axes>) -> Option<Area> {
+        let Some(Axes { rows, cols }) = axes else {
             return Some(area);
         };
         let (Some(ys), Some(xs)) = (
@@ -1152,6 +1208,12 @@ fn to_f64(k: i128) -> f64 {
 /// `k2 t^2 + k1 t + k0` with k2 < 0, over integers t.
 struct Concave {
     k: [i128; 3],
+}
+
+/// An ellipse's rows' and columns' discriminants ([`Ellipse::axes`]).
+struct Axes {
+    rows: Concave,
+    cols: Concave,
 }
 
 /// Bounds under which [`Concave::at`] cannot overflow i128: |k| < 2^96 and 0 <= t < 2^14 give
@@ -1471,17 +1533,22 @@ enum Shape {
 impl BandBound {
     /// The band bound of `bound`; `None` where it has none (an ellipse too large for
     /// `Chords`, where the region is more than the half-plane).
-    fn of(bound: &Bound) -> Option<BandBound> {
+    fn of(bound: &Bound, ellipses: &[BoundEllipse]) -> Option<BandBound> {
         let (half_plane, shape) = match *bound {
             Bound::Half(h, _, cut) => {
-                let shape = cut.and_then(Chords::of).map_or(Shape::Half, Shape::Less);
-                (h, shape)
+                let chords = cut.and_then(|i| {
+                    let e = ellipses[i as usize].e;
+                    Some(Chords::of(e, &e.rows()?))
+                });
+                (h, chords.map_or(Shape::Half, Shape::Less))
             }
             // No pixel of the area is inside the ellipse.
             Bound::HalfOrBox(h, None, _) => (h, Shape::Half),
-            Bound::HalfOrBox(h, Some(b), e) => {
-                let chords = Chords::of(e)?;
-                let extremes = Extremes::of(e)?;
+            Bound::HalfOrBox(h, Some(b), i) => {
+                let BoundEllipse { e, axes } = &ellipses[i as usize];
+                let axes = axes.as_ref()?;
+                let chords = Chords::of(*e, &axes.rows);
+                let extremes = Extremes::of(*e, &axes.cols)?;
                 (h, Shape::Or(chords, b, extremes))
             }
         };
@@ -1566,19 +1633,18 @@ struct Chords {
 }
 
 impl Chords {
-    /// `None` if the discriminant's coefficients overflow (`Concave::discriminant`).
-    fn of(e: Ellipse) -> Option<Chords> {
-        let [a, b, c, d, ee, f] = e.k;
-        let [k2, k1, k0] = Concave::discriminant(a, ee, d, b, f, c)?.k;
-        let disc = [k2, k1, k0].map(to_f64);
+    /// The chords of ellipse `e`, whose rows' discriminant is `rows` ([`Ellipse::axes`]).
+    fn of(e: Ellipse, rows: &Concave) -> Chords {
+        let [a, _, _, d, ee, _] = e.k;
+        let disc = rows.k.map(to_f64);
         let centre = [a, ee].map(to_f64);
-        Some(Chords {
+        Chords {
             disc,
             disc_abs: disc.map(f64::abs),
             centre,
             centre_abs: centre.map(f64::abs),
             half: -0.5 / to_f64(d),
-        })
+        }
     }
 
     /// Row `y`'s chord, in columns: `outer`, an interval that surely holds every real point of
@@ -1619,12 +1685,13 @@ struct Extremes {
 }
 
 impl Extremes {
+    /// The extremes of ellipse `e`, whose columns' discriminant is `cols` ([`Ellipse::axes`]).
     /// The extreme points are where the boundary's tangent is vertical, `dV/dy = e x + 2 f y +
     /// b = 0`: at the roots x of the columns' discriminant `(b + e x)^2 - 4 f (c + a x + d
-    /// x^2)`, on rows `-(e x + b) / (2 f)`. `None` if a coefficient overflows.
-    fn of(e: Ellipse) -> Option<Extremes> {
-        let [a, b, c, d, ee, f] = e.k;
-        let [q2, q1, q0] = Concave::discriminant(b, ee, f, a, d, c)?.k.map(to_f64);
+    /// x^2)`, on rows `-(e x + b) / (2 f)`. `None` if a value is not finite.
+    fn of(e: Ellipse, cols: &Concave) -> Option<Extremes> {
+        let [_, b, _, _, ee, f] = e.k;
+        let [q2, q1, q0] = cols.k.map(to_f64);
         let (b, ee, f) = (to_f64(b), to_f64(ee), to_f64(f));
         // The roots (q1 -+ sqrt(D)) / (2 |q2|) (q2 < 0), D = q1^2 - 4 q2 q0. D's error, within
         // (q1^2 + 4 |q2 q0|) 2^-50, moves sqrt(D) by at most its square root: the roots err by
@@ -2147,7 +2214,7 @@ mod tests {
                 assert!(!definite, "a definite form was refused");
                 continue;
             };
-            let b = ellipse.box_in(all);
+            let b = ellipse.box_in(all, ellipse.axes().as_ref());
             for py in 0..h {
                 let row = t.streams.row_fn(py);
                 for px in 0..w {
@@ -2188,8 +2255,12 @@ mod tests {
             let k0 = -(hx * draw(&mut r, 0, 127) + hy * draw(&mut r, 0, 127));
             let half = [k0, hx, hy];
             let in_half = |px: usize, py: usize| k0 + hx * px as i64 + hy * py as i64 >= 0;
-            let or = Bound::HalfOrBox(half, ellipse.box_in(all), ellipse);
-            let less = Bound::Half(half, false, Some(ellipse));
+            let axes = ellipse.axes();
+            let b = ellipse.box_in(all, axes.as_ref());
+            let mut ellipses = Vec::new();
+            let or = Bound::HalfOrBox(half, b, BoundEllipse::push(&mut ellipses, ellipse, axes));
+            let cut = BoundEllipse::push(&mut ellipses, ellipse, None);
+            let less = Bound::Half(half, false, Some(cut));
             for (bound, holds) in [
                 (
                     or,
@@ -2197,7 +2268,7 @@ mod tests {
                 ),
                 (less, &|px, py| in_half(px, py) && !inside(px, py)),
             ] {
-                let Some(band) = BandBound::of(&bound) else {
+                let Some(band) = BandBound::of(&bound, &ellipses) else {
                     continue;
                 };
                 for _ in 0..20 {
