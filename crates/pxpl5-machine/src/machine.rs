@@ -88,6 +88,12 @@ pub struct Machine {
     /// back: a wake-up, a message, words freed at their node (`Ring::take_freed_nodes`).
     gp_ready: Ready,
     renderers: Vec<RendererNode>,
+    /// The Renderers that may start a command or offer a readback message in an instant: those
+    /// handed commands, whose command completed, or whose waiting readback's node freed
+    /// output-queue words since the loop last looked at them. Nothing else changes what a
+    /// Renderer can do, and none of these happens inside an instant's rounds (the ring
+    /// delivers and frees words, and completions are due, only between them).
+    renderer_ready: Ready,
     /// The boxes the messages' critical paths travel in, kept (host work only).
     spare_profiles: SpareProfiles,
     frame: FrameBufferImage,
@@ -159,7 +165,7 @@ impl Machine {
         // Pixel work on host threads only when asked for, and never more threads than boards.
         let workers = (options.threads > 1 && cfg.renderer.count > 1)
             .then(|| Workers::new(options.threads.min(cfg.renderer.count as usize)));
-        let renderers = (0..cfg.renderer.count)
+        let renderers: Vec<RendererNode> = (0..cfg.renderer.count)
             .map(|r| {
                 RendererNode::new(
                     r,
@@ -191,6 +197,7 @@ impl Machine {
             positions,
             ring,
             gp_ready: Ready::full(gps.len()),
+            renderer_ready: Ready::full(renderers.len()),
             gps,
             renderers,
             frame: FrameBufferImage::new(fb.0, fb.1),
@@ -309,14 +316,20 @@ impl Machine {
         Ok(self.finish())
     }
 
-    /// Steps 3 to 5 of the loop at the current instant, repeated until nothing changes (a GP's
-    /// send can make a Renderer runnable and so on, all at the same instant). `acted`: whether
-    /// the instant delivered a message or ran an event.
+    /// Steps 3 to 5 of the loop at the current instant, repeated until nothing changes (a GP
+    /// whose blocked send the ring took runs on at the same instant). Only the units in the
+    /// ready sets are looked at. `acted`: whether the instant delivered a message or ran an
+    /// event.
     fn step_units(&mut self, acted: bool) -> Result<(), RunError> {
         // A refused send may go now if its node's output queue freed words (only the ring's
         // advance frees them, before this step).
-        let (units, gps, renderers, ready) =
-            (&self.units, &self.gps, &self.renderers, &mut self.gp_ready);
+        let (units, gps, renderers, ready, renderer_ready) = (
+            &self.units,
+            &self.gps,
+            &self.renderers,
+            &mut self.gp_ready,
+            &mut self.renderer_ready,
+        );
         let mut woke = false;
         self.ring
             .take_freed_nodes(|node| match units.get(node.0 as usize) {
@@ -324,7 +337,10 @@ impl Machine {
                     ready.set(g as usize, true);
                     woke = true;
                 }
-                Some(&Unit::Renderer(r)) if renderers[r as usize].has_outgoing() => woke = true,
+                Some(&Unit::Renderer(r)) if renderers[r as usize].has_outgoing() => {
+                    renderer_ready.set(r as usize, true);
+                    woke = true;
+                }
                 _ => {}
             });
         // An instant of the ring alone (its output queues freed words no sender waits for):
@@ -337,8 +353,12 @@ impl Machine {
         }
         loop {
             let mut progress = false;
-            for r in 0..self.renderers.len() {
+            let mut next = self.renderer_ready.next_from(0);
+            while let Some(r) = next {
+                // Looked at: it waits again for one of the changes that put it back.
+                self.renderer_ready.set(r, false);
                 progress |= self.renderer_try_start(r as u32)?;
+                next = self.renderer_ready.next_from(r + 1);
             }
             let mut next = self.gp_ready.next_from(0);
             while let Some(g) = next {
@@ -529,7 +549,9 @@ impl Machine {
             Unit::Renderer(r) => match message.payload {
                 Payload::Commands(cs) => {
                     let arrival = (self.now, arrived);
-                    if !self.renderers[r as usize].accept(message.from, id, cs, arrival) {
+                    if self.renderers[r as usize].accept(message.from, id, cs, arrival) {
+                        self.renderer_ready.set(r as usize, true);
+                    } else {
                         self.consume(id);
                     }
                 }
@@ -693,6 +715,7 @@ impl Machine {
     }
 
     fn renderer_done(&mut self, r: u32) {
+        self.renderer_ready.set(r as usize, true);
         if let Some(id) = self.renderers[r as usize].complete() {
             self.consume(id);
         }
