@@ -444,6 +444,15 @@ impl Machine {
         match step? {
             GpStep::Finished => self.recorder.gp_done(g, self.now),
             GpStep::Busy(until, busy) => self.gp_busy(g, until, busy),
+            GpStep::ComputeThen {
+                computed,
+                until,
+                then,
+            } => {
+                self.charge_busy(g, (self.now, computed), Busy::Compute);
+                self.charge_busy(g, (computed, until), then);
+                self.schedule(until, Event::GpWake(g));
+            }
             GpStep::Waiting => {}
         }
         Ok(true)
@@ -452,7 +461,14 @@ impl Machine {
     /// GP `g` became busy until `until` doing `busy`: record it, extend its critical path, and
     /// schedule its wake-up.
     fn gp_busy(&mut self, g: u32, until: Tick, busy: Busy) {
-        self.recorder.gp_busy(g, self.now, until, busy);
+        self.charge_busy(g, (self.now, until), busy);
+        self.schedule(until, Event::GpWake(g));
+    }
+
+    /// GP `g` is busy from `from` to `until` doing `busy`: record it and extend its critical
+    /// path.
+    fn charge_busy(&mut self, g: u32, (from, until): (Tick, Tick), busy: Busy) {
+        self.recorder.gp_busy(g, from, until, busy);
         let cat = match busy {
             Busy::Compute => self.gp_phase[g as usize],
             Busy::Send => self.fixed.send,
@@ -460,8 +476,7 @@ impl Machine {
         };
         self.gps[g as usize]
             .profile
-            .add_by(cat, until - self.now, Unit::Gp(g));
-        self.schedule(until, Event::GpWake(g));
+            .add_by(cat, until - from, Unit::Gp(g));
     }
 
     fn schedule(&mut self, at: Tick, e: Event) {

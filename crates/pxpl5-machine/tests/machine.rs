@@ -798,10 +798,78 @@ fn a_board_runs_a_messages_commands_back_to_back_with_the_same_stats() {
     assert_eq!(quiet, recorded);
     assert!(quiet.contains("\"commands\":25"), "{quiet}");
     // Each message's first five completions need no instant of the loop: up to 40 fewer (fewer
-    // when another unit acts at the same instant).
+    // when another unit acts at the same instant; 38 here). Nor does the end of GP 0's
+    // computing before each of its 10 sends (`GpNode::take_up_at`): 10 fewer.
     let saved = recorded_instants - quiet_instants;
     assert!(
-        (30..=40).contains(&saved),
+        (40..=50).contains(&saved),
+        "{quiet_instants} of {recorded_instants}"
+    );
+}
+
+/// GP 1 sends GP 0 six messages; GP 0 computes until they are all in its mailbox, then takes
+/// them one by one, each after a piece of computing (half of them with a phase marked), and
+/// answers GP 1 after computing.
+fn receives_after_computing_program() -> impl Program {
+    program("receives-after-computing", |gp| {
+        Box::pin(async move {
+            let data = |tag| Payload::Data {
+                tag,
+                values: vec![tag as f64],
+                words: 2,
+            };
+            match gp.index() {
+                0 => {
+                    gp.phase("wait");
+                    gp.compute_cycles(Cycles(20_000)).await;
+                    for k in 0..6u64 {
+                        gp.compute_cycles(Cycles(300 + 50 * k)).await;
+                        if k % 2 == 1 {
+                            gp.phase(if k == 3 { "odd" } else { "receive" });
+                        }
+                        let m = gp.recv().await;
+                        assert!(matches!(m.payload, Payload::Data { tag, .. } if tag == k));
+                    }
+                    gp.compute_cycles(Cycles(700)).await;
+                    gp.send(Unit::Gp(1), data(99)).await;
+                }
+                _ => {
+                    for k in 0..6u64 {
+                        gp.compute_cycles(Cycles(100)).await;
+                        gp.send(Unit::Gp(0), data(k)).await;
+                    }
+                    gp.recv().await;
+                }
+            }
+            Ok(())
+        })
+    })
+}
+
+#[test]
+fn a_receive_or_send_after_computing_is_taken_up_at_once_with_the_same_stats() {
+    // Not recorded, a GP's send after computing, and its receive after computing of a message
+    // already in its mailbox, start their costs at the computing's end without an instant of
+    // the loop there (`GpNode::take_up_at`); a receive after a phase mark keeps that instant.
+    // The stats (phases and critical path included) are those of the recorded run, which
+    // takes every step at its instant.
+    let cfg = machine(2, 1, 1);
+    let [(quiet, quiet_instants), (recorded, recorded_instants)] = quiet_and_recorded(
+        &cfg,
+        &receives_after_computing_program(),
+        RunOptions::default().max_time,
+    );
+    assert_eq!(quiet, recorded);
+    assert!(quiet.contains("\"messages_received\":6"), "{quiet}");
+    for phase in ["wait", "receive", "odd"] {
+        assert!(quiet.contains(&format!("\"{phase}\"")), "{phase}: {quiet}");
+    }
+    // GP 0: three receives without a mark and the answer; GP 1: five of its six sends (its
+    // first computing starts the run, the instant the program starts at) and its receive
+    // waits for a message.
+    let saved = recorded_instants - quiet_instants;
+    assert!(
+        (8..=12).contains(&saved),
         "{quiet_instants} of {recorded_instants}"
     );
 }
