@@ -579,14 +579,10 @@ impl Machine {
                 self.spare_profiles.keep(arrived);
                 self.consume(id);
                 if let Payload::Pixels {
-                    tag,
-                    rect,
-                    bits,
-                    words,
+                    tag, rect, values, ..
                 } = message.payload
                 {
-                    self.frame
-                        .write_pixels(tag, rect, bits, &words, self.cfg.ring.word_bits);
+                    self.frame.write_pixels(tag, rect, &values);
                 }
             }
             Unit::Host => {
@@ -836,7 +832,7 @@ fn ring_words(cfg: &MachineConfig, p: &Payload) -> u32 {
         Payload::Commands(cs) => {
             pxpl5_renderer::Command::list_words(cs, coefficient_bits, word_bits)
         }
-        Payload::Pixels { words, .. } => words.len() as u32,
+        Payload::Pixels { words, .. } => *words,
         Payload::Data { words, .. } => *words,
     }
     .max(1)

@@ -211,14 +211,15 @@ impl RendererNode {
         self.commands += 1;
         let readback = executed.readback.is_some();
         if let Some(rb) = executed.readback {
-            // The board packed the messages; they travel as they are, and whoever receives one
-            // unpacks it.
+            // The board split the rows into messages and counted their ring words; they travel
+            // as they are.
             let to = Unit::decode(rb.dest);
             self.outbox.extend(rb.messages.into_iter().map(|m| {
                 let payload = Payload::Pixels {
                     tag: rb.tag,
                     rect: m.rect,
                     bits: rb.bits,
+                    values: m.values,
                     words: m.words,
                 };
                 Outgoing::new(to, payload)

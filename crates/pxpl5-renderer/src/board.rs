@@ -23,7 +23,7 @@ use crate::engine::integer::IntegerEngine;
 use crate::engine::sparse::SparseEngine;
 use crate::engine::{DepthTest, Geometry, PixelEngine, QeeSink, Registers};
 use crate::qee::{COEFFICIENT_NAMES, QeeExpr, Streams, Window};
-use crate::readback::{ReadbackMessage, pack_messages};
+use crate::readback::{self, ReadbackMessage};
 use crate::workers::{Remote, Workers};
 
 /// How the pixel work is simulated. Cycle counts are identical at every level, since they come
@@ -174,7 +174,7 @@ pub struct ReadbackStream {
     pub tag: u32,
     /// Bits per pixel value: the field's width.
     pub bits: u32,
-    /// The field's rows in order, in messages of ring words packed as [`crate::readback`]
+    /// The field's rows in order, in messages whose ring words are counted as [`crate::readback`]
     /// documents.
     pub messages: Vec<ReadbackMessage>,
 }
@@ -280,7 +280,7 @@ impl Blank {
             dest,
             tag,
             bits: field.bits,
-            messages: pack_messages(
+            messages: readback::messages(
                 &zeros,
                 rect,
                 field.bits,
@@ -979,7 +979,7 @@ impl Pixels {
                     dest,
                     tag,
                     bits: field.bits,
-                    messages: pack_messages(
+                    messages: readback::messages(
                         &self.values,
                         rect,
                         field.bits,

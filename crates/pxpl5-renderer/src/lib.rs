@@ -8,7 +8,7 @@
 //!   identical, which the property tests in `tests/equivalence.rs` check on random command
 //!   streams.
 //! - [`qee`] fixes the QEE's exact semantics and its documented result-cut rule.
-//! - [`PixelLayout`] allocates named fields in pixel memory; [`readback`] packs ring words and messages.
+//! - [`PixelLayout`] allocates named fields in pixel memory; [`readback`] splits a readback into messages and counts their ring words.
 //! - [`Workers`] runs boards' pixel work on host threads ([`Board::on_workers`]), with identical
 //!   results.
 //!

@@ -5,7 +5,7 @@
 use pxpl5_config::RendererConfig;
 use pxpl5_renderer::{
     Bit, Board, Cmp, Command, CommandError, Fidelity, Field, LogicOp, PixelLayout, QeeExpr, Rect,
-    Window, readback,
+    Window,
 };
 
 /// The seed machine's Renderer: 128 x 128, 208 bits, 4 flags, IGC overhead 20, QEE latency 8.
@@ -48,7 +48,7 @@ fn check(setup: &[Command], cmd: Command, cycles: u64) -> Board {
         "{cmd:?}: the timing level's stats"
     );
     let shape = |r: &pxpl5_renderer::ReadbackStream| {
-        let rows: Vec<_> = r.messages.iter().map(|m| (m.rect, m.words.len())).collect();
+        let rows: Vec<_> = r.messages.iter().map(|m| (m.rect, m.words)).collect();
         (r.dest, r.tag, r.bits, rows)
     };
     assert_eq!(
@@ -56,7 +56,7 @@ fn check(setup: &[Command], cmd: Command, cycles: u64) -> Board {
         eb.readback.as_ref().map(shape)
     );
     if let Some(r) = &et.readback {
-        assert!(r.messages.iter().all(|m| m.words.iter().all(|&w| w == 0)));
+        assert!(r.messages.iter().all(|m| m.values.iter().all(|&v| v == 0)));
     }
     assert_eq!((eb.end - eb.start).0, cycles, "{cmd:?}: cycles");
     assert_eq!(
@@ -328,9 +328,10 @@ fn readback_packs_ring_words() {
     // Unlimited messages: one message carries the whole rectangle.
     assert_eq!(r.messages.len(), 1);
     assert_eq!(r.messages[0].rect, rect);
-    let words = &r.messages[0].words;
-    assert_eq!(words.len(), 8);
-    let px = readback::unpack(words, 16, 32, 15);
+    // 15 16-bit values: 8 words.
+    assert_eq!(r.messages[0].words, 8);
+    let px = &r.messages[0].values;
+    assert_eq!(px.len(), 15);
     assert_eq!(px[0], 10 + 20 * 1000);
     assert_eq!(px[14], 14 + 22 * 1000);
     drop(b);

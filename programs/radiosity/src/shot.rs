@@ -16,7 +16,7 @@ use std::rc::Rc;
 use pxpl5_config::{FixedFormat, RendererConfig};
 use pxpl5_geom::DVec3;
 use pxpl5_machine::{CommandBatch, Cost, Gp, Message, Op, Payload, ProgramError, Tag, Unit};
-use pxpl5_renderer::{Command, Rect, readback};
+use pxpl5_renderer::{Command, Rect};
 
 use crate::exact;
 use crate::views::{
@@ -576,8 +576,6 @@ pub struct Kept {
     w_tables: WTables,
     /// Sums per view, reset at each shot.
     by_view: Vec<IdSums>,
-    /// The IDs of the readback message being summed.
-    ids: Vec<u64>,
     polygons: PolygonBuffers,
 }
 
@@ -640,7 +638,6 @@ pub async fn shoot(
     let Kept {
         w_tables,
         by_view,
-        ids,
         polygons: buffers,
     } = kept;
     let rc = gp.renderer_config();
@@ -739,9 +736,9 @@ pub async fn shoot(
             Event::Band { view } => {
                 gp.phase("accumulate");
                 let sums = &mut by_view[view];
-                let count = accumulate(gp, (&s, &views[view]), &m, sums, ids).await?;
+                let count = accumulate(gp, &views[view], &m, sums).await?;
                 if let Some(items) = items {
-                    keep_item_buffer(items, &views[view], &m, &s);
+                    keep_item_buffer(items, &views[view], &m);
                 }
                 left.band_received(view, count);
             }
@@ -1200,23 +1197,20 @@ async fn write_w_table(gp: &Gp, s: &Setting, v: &View, board: u32, n: u32) {
 }
 
 /// Add the delta form factors of one readback message of this GP's band of view `v` to the
-/// view's sums per ID; the pixels it held. `ids` is a buffer for the message's IDs, kept from
-/// one message to the next.
+/// view's sums per ID; the pixels it held.
 async fn accumulate(
     gp: &Gp,
-    (s, v): (&Setting, &View),
+    v: &View,
     m: &Message,
     sums: &mut IdSums,
-    ids: &mut Vec<u64>,
 ) -> Result<u64, ProgramError> {
-    let Payload::Pixels {
-        rect, bits, words, ..
-    } = &m.payload
-    else {
+    let Payload::Pixels { rect, values, .. } = &m.payload else {
         return Err(unexpected(gp.index(), m));
     };
     let count = (rect.width * rect.height) as usize;
-    let ids = readback::unpack_into(words, *bits, s.word_bits, count, ids);
+    let ids = values
+        .get(..count)
+        .ok_or_else(|| unexpected(gp.index(), m))?;
     gp.work(|cost| {
         cost.add(Op::FfAccumulatePerPixel, count as u64);
         // Row by row, in pixel order (the sums' order of addition is the result's): no
@@ -1233,19 +1227,11 @@ async fn accumulate(
 
 /// Copy a readback of a band of IDs into the item buffer of view `v` (for pictures, outside
 /// simulated time).
-fn keep_item_buffer(items: &ItemBuffers, v: &View, m: &Message, s: &Setting) {
-    let Payload::Pixels {
-        rect, bits, words, ..
-    } = &m.payload
-    else {
+fn keep_item_buffer(items: &ItemBuffers, v: &View, m: &Message) {
+    let Payload::Pixels { rect, values, .. } = &m.payload else {
         return;
     };
-    let ids = readback::unpack(
-        words,
-        *bits,
-        s.word_bits,
-        (rect.width * rect.height) as usize,
-    );
+    let ids = &values[..values.len().min((rect.width * rect.height) as usize)];
     let y = rect.y;
     let mut all = items.borrow_mut();
     let name = view_name(v);
