@@ -49,8 +49,8 @@ pub enum Payload {
     /// IGC commands for a Renderer, executed in order.
     Commands(Vec<Command>),
     /// A Renderer's readback: the values of a field of `bits` bits of a rectangle of its array,
-    /// row by row, and the `words` ring words they take packed as `pxpl5_renderer::readback`
-    /// documents (the host carries the values themselves), with the readback command's tag (the
+    /// row by row (on the ring, the words they take packed as `pxpl5_renderer::readback`
+    /// documents; the host carries the values themselves), with the readback command's tag (the
     /// frame buffer reads the tag as the screen position of array pixel (0, 0): x in the low 16
     /// bits, y in the high 16).
     Pixels {
@@ -58,7 +58,6 @@ pub enum Payload {
         rect: pxpl5_renderer::Rect,
         bits: u32,
         values: Vec<u64>,
-        words: u32,
     },
     /// Program data between GPs: `words` ring words, with a program-defined value list.
     Data {

@@ -832,7 +832,12 @@ fn ring_words(cfg: &MachineConfig, p: &Payload) -> u32 {
         Payload::Commands(cs) => {
             pxpl5_renderer::Command::list_words(cs, coefficient_bits, word_bits)
         }
-        Payload::Pixels { words, .. } => *words,
+        // The values packed as `pxpl5_renderer::readback` documents (a count beyond u32 is one
+        // no ring takes).
+        Payload::Pixels { bits, values, .. } => {
+            let words = pxpl5_renderer::readback::words_needed(values.len(), *bits, word_bits);
+            u32::try_from(words).unwrap_or(u32::MAX)
+        }
         Payload::Data { words, .. } => *words,
     }
     .max(1)

@@ -211,8 +211,7 @@ impl RendererNode {
         self.commands += 1;
         let readback = executed.readback.is_some();
         if let Some(rb) = executed.readback {
-            // The board split the rows into messages and counted their ring words; they travel
-            // as they are.
+            // The board split the rows into messages; they travel as they are.
             let to = Unit::decode(rb.dest);
             self.outbox.extend(rb.messages.into_iter().map(|m| {
                 let payload = Payload::Pixels {
@@ -220,7 +219,6 @@ impl RendererNode {
                     rect: m.rect,
                     bits: rb.bits,
                     values: m.values,
-                    words: m.words,
                 };
                 Outgoing::new(to, payload)
             }));

@@ -17,23 +17,20 @@
 //! padded), as many rows per message as fit in `max_message_words` words and at least one
 //! (\[assumed\] streaming: the output port never needs to hold a whole field).
 //!
-//! The packing decides how many words each message takes on the ring ([`words_needed`]); the
-//! host carries the pixels' values beside that count instead of packing them into words and
+//! The packing decides how many words each message takes on the ring ([`words_needed`] of its
+//! pixels); the host carries the pixels' values instead of packing them into words and
 //! unpacking them at the receiver, which gives the same values (each is a `bits`-bit field's,
 //! below 2^`bits`). Host work only: packing and unpacking were 4 % of the main job's hemicube
 //! instructions (346 M of 7.78 G, by callgrind).
 
 use crate::command::Rect;
 
-/// One message of a readback: the rows of `rect` it carries.
+/// One message of a readback: the rows of `rect` it carries, as their pixels' raw field values,
+/// row by row (on the ring, [`words_needed`] of them).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct ReadbackMessage {
     pub rect: Rect,
-    /// The pixels' raw field values, row by row.
     pub values: Vec<u64>,
-    /// The ring words they take, packed as the module doc says ([`words_needed`]; `u32::MAX`
-    /// for a count beyond it, which no ring takes).
-    pub words: u32,
 }
 
 /// The messages carrying `values` (the raw `bits`-bit values of `rect`'s pixels, row by row) at
@@ -64,17 +61,19 @@ pub fn messages(
                 height: (rows.len() / width) as u32,
             },
             values: rows.to_vec(),
-            words: u32::try_from(words_needed(rows.len(), bits, word_bits)).unwrap_or(u32::MAX),
         })
         .collect()
 }
 
-/// Ring words a readback of `pixels` pixels of a `bits`-bit field needs.
+/// Ring words a readback of `pixels` pixels of a `bits`-bit field needs (none for a field of no
+/// bits, which only a program's own payload can claim: a board's fields have 1 to 64).
 pub fn words_needed(pixels: usize, bits: u32, word_bits: u32) -> usize {
-    if bits <= word_bits {
+    if bits == 0 || word_bits == 0 {
+        0
+    } else if bits <= word_bits {
         pixels.div_ceil((word_bits / bits) as usize)
     } else {
-        pixels * bits.div_ceil(word_bits) as usize
+        pixels.saturating_mul(bits.div_ceil(word_bits) as usize)
     }
 }
 
@@ -90,6 +89,8 @@ mod tests {
         assert_eq!(words_needed(7, 10, 32), 3);
         assert_eq!(words_needed(6, 10, 32), 2);
         assert_eq!(words_needed(1, 32, 32), 1);
+        // A payload a program made, of no bits, takes no words (and no division by zero).
+        assert_eq!(words_needed(5, 0, 32), 0);
     }
 
     #[test]
@@ -121,8 +122,12 @@ mod tests {
             }
         );
         // Rows of one message share words (6 values in 3 words); each message pads on its own.
-        let words: Vec<u32> = m.iter().map(|m| m.words).collect();
-        assert_eq!(words, [3, 3, 2]);
+        let words = |m: &[ReadbackMessage], bits| {
+            m.iter()
+                .map(|m| words_needed(m.values.len(), bits, 32))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(words(&m, 16), [3, 3, 2]);
         assert_eq!(m[0].values, v[..6]);
         assert_eq!(m[2].values, v[12..]);
         let back: Vec<u64> = m.iter().flat_map(|m| m.values.iter().copied()).collect();
@@ -131,10 +136,6 @@ mod tests {
         assert_eq!(messages(&v, rect, 16, 32, 1).len(), 5);
         assert_eq!(messages(&v, rect, 16, 32, u32::MAX).len(), 1);
         // 40-bit values: 2 words a pixel, 6 a row; 13 words hold 2 rows.
-        let words: Vec<u32> = messages(&v, rect, 40, 32, 13)
-            .iter()
-            .map(|m| m.words)
-            .collect();
-        assert_eq!(words, [12, 12, 6]);
+        assert_eq!(words(&messages(&v, rect, 40, 32, 13), 40), [12, 12, 6]);
     }
 }
