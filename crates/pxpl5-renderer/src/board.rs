@@ -281,7 +281,7 @@ impl Blank {
             tag,
             bits: field.bits,
             messages: readback::messages(
-                &zeros,
+                zeros,
                 rect,
                 field.bits,
                 self.ring_word_bits,
@@ -335,10 +335,6 @@ pub(crate) struct Pixels {
     enabled_superset: bool,
     all_groups: Vec<u32>,
     streams: Streams,
-    /// A readback's values, packed into its messages at once: one buffer for every readback
-    /// (a fresh one each was 137 K allocations of 1.8 KB in the main job's hemicube, beyond
-    /// the allocator's per-thread cache).
-    values: Vec<u64>,
     /// A depth test [`Pixels::apply`] holds back to run as one pass.
     held: Option<Held>,
 }
@@ -397,7 +393,6 @@ impl Board {
             enabled_superset: false,
             all_groups: (0..geometry.groups as u32).collect(),
             streams: Streams::new(&QeeExpr::default(), (0, 0), 0, 0),
-            values: Vec::new(),
             held: None,
         };
         Board::keeping_time(cfg, Side::Here(Box::new(pixels)))
@@ -974,13 +969,16 @@ impl Pixels {
                 dest,
                 tag,
             } => {
-                self.engine.get().read_values(field, rect, &mut self.values);
+                // A buffer of the readback's own, which its messages take (one message, as a
+                // band of a view's IDs is, takes it whole).
+                let mut values = Vec::new();
+                self.engine.get().read_values(field, rect, &mut values);
                 return Some(ReadbackStream {
                     dest,
                     tag,
                     bits: field.bits,
                     messages: readback::messages(
-                        &self.values,
+                        values,
                         rect,
                         field.bits,
                         self.ring_word_bits,

@@ -35,9 +35,10 @@ pub struct ReadbackMessage {
 
 /// The messages carrying `values` (the raw `bits`-bit values of `rect`'s pixels, row by row) at
 /// `word_bits` bits per word and at most `max_message_words` words per message (a row longer than
-/// that still travels whole, alone).
+/// that still travels whole, alone). Values that fit one message travel in their own buffer, not
+/// a copy (the copy was most of the board's cost of a hemicube's ID bands).
 pub fn messages(
-    values: &[u64],
+    values: Vec<u64>,
     rect: Rect,
     bits: u32,
     word_bits: u32,
@@ -50,6 +51,12 @@ pub fn messages(
     let width = rect.width as usize;
     let row_words = words_needed(width, bits, word_bits);
     let rows_per = (max_message_words as usize / row_words.max(1)).max(1);
+    if values.is_empty() {
+        return Vec::new();
+    }
+    if values.len() <= rows_per.saturating_mul(width) {
+        return vec![ReadbackMessage { rect, values }];
+    }
     values
         .chunks(rows_per * width)
         .enumerate()
@@ -110,7 +117,7 @@ mod tests {
         };
         let v: Vec<u64> = (0..15).collect();
         // 16-bit values: a row of 3 is 2 words, so 5 words hold 2 rows; the last message 1 row.
-        let m = messages(&v, rect, 16, 32, 5);
+        let m = messages(v.clone(), rect, 16, 32, 5);
         let heights: Vec<u32> = m.iter().map(|m| m.rect.height).collect();
         assert_eq!(heights, [2, 2, 1]);
         assert_eq!(
@@ -133,9 +140,26 @@ mod tests {
         let back: Vec<u64> = m.iter().flat_map(|m| m.values.iter().copied()).collect();
         assert_eq!(back, v);
         // A row longer than a message travels whole; an unlimited message takes everything.
-        assert_eq!(messages(&v, rect, 16, 32, 1).len(), 5);
-        assert_eq!(messages(&v, rect, 16, 32, u32::MAX).len(), 1);
+        assert_eq!(messages(v.clone(), rect, 16, 32, 1).len(), 5);
+        // Values that fit one message travel as they are, under the whole rectangle.
+        assert_eq!(
+            messages(v.clone(), rect, 16, 32, u32::MAX),
+            [ReadbackMessage {
+                rect,
+                values: v.clone()
+            }]
+        );
+        // Five rows of two words: ten words are one message, nine are two.
+        assert_eq!(
+            messages(v.clone(), rect, 16, 32, 10),
+            messages(v.clone(), rect, 16, 32, u32::MAX)
+        );
+        assert_eq!(messages(v.clone(), rect, 16, 32, 9).len(), 2);
+        assert!(messages(Vec::new(), Rect { height: 0, ..rect }, 16, 32, 5).is_empty());
         // 40-bit values: 2 words a pixel, 6 a row; 13 words hold 2 rows.
-        assert_eq!(words(&messages(&v, rect, 40, 32, 13), 40), [12, 12, 6]);
+        assert_eq!(
+            words(&messages(v.clone(), rect, 40, 32, 13), 40),
+            [12, 12, 6]
+        );
     }
 }
