@@ -27,6 +27,7 @@ use crate::UserError;
 use crate::choices::{BenchFidelity, Methods};
 use crate::config_cmd;
 use crate::output::outln;
+use crate::radiosity::{self, RadiosityArgs};
 
 /// Options of `pxpl5 bench renderer`.
 #[derive(Args, Clone, Debug)]
@@ -389,6 +390,12 @@ pub struct MachineArgs {
     /// Shots of progressive refinement per run (fixed, so the work is: no target accuracy).
     #[arg(long, default_value_t = 24, value_parser = clap::value_parser!(u32).range(1..=10_000))]
     pub shots: u32,
+    /// Run each method as the main job (`pxpl5 radiosity` without flags) does instead of a fixed
+    /// number of shots: until every surface is within 1 % of the exact reference, so the shots
+    /// differ by method. Simulated seconds per host CPU second then say whether the main job
+    /// simulates as fast as real time (the reference's solve is not timed, nor the picture).
+    #[arg(long, conflicts_with = "shots")]
+    pub main_job: bool,
     /// Runs per level; host figures are those of the fastest.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub repeat: u32,
@@ -403,23 +410,42 @@ struct MachineRun {
     fidelity: Fidelity,
     simulated_seconds: f64,
     host_seconds: f64,
+    /// Shots taken: the fixed number, or as many as the main job's target took.
+    shots: usize,
     /// The solution's bits, which every level must reproduce.
     solution: Vec<u64>,
     instructions: Option<u64>,
 }
 
-/// `pxpl5 bench machine`: the main job's radiosity program, a fixed number of shots per method,
-/// on the whole machine.
+/// `pxpl5 bench machine`: the main job's radiosity program, a fixed number of shots per method
+/// or as the main job runs it (`--main-job`), on the whole machine.
 pub fn machine(args: &MachineArgs) -> Result<(), UserError> {
     let cfg = config_cmd::load(args.config.as_deref())?;
-    let scene = pxpl5_radiosity::scenes::cornell_empty();
-    let patches = mesh(&scene, MAIN_JOB_PATCH_SIZE)
-        .map_err(|e| UserError(format!("the main job's mesh: {e}")))?;
+    // The main job's plan (its reference and target) when asked for: the reference is solved
+    // here, before any timing.
+    let main_job = args
+        .main_job
+        .then(|| {
+            let job = RadiosityArgs::defaults();
+            radiosity::prepare(&job, &cfg).map(|p| (job, p))
+        })
+        .transpose()?;
+    let patches = match &main_job {
+        Some((_, p)) => p.patches.clone(),
+        None => mesh(
+            &pxpl5_radiosity::scenes::cornell_empty(),
+            MAIN_JOB_PATCH_SIZE,
+        )
+        .map_err(|e| UserError(format!("the main job's mesh: {e}")))?,
+    };
     let mut report = Vec::new();
     for method in args.method.methods() {
         let mut runs = Vec::new();
         for fidelity in args.fidelity.levels() {
-            let mut settings = Settings::fixed_shots(method, args.shots as usize, &cfg);
+            let mut settings = match &main_job {
+                Some((job, p)) => job.settings(method, &p.plan),
+                None => Settings::fixed_shots(method, args.shots as usize, &cfg),
+            };
             settings.run.fidelity = fidelity;
             let mut best: Option<MachineRun> = None;
             for _ in 0..args.repeat {
@@ -431,6 +457,7 @@ pub fn machine(args: &MachineArgs) -> Result<(), UserError> {
                     fidelity,
                     simulated_seconds: run.stats.end.as_secs_f64(),
                     host_seconds,
+                    shots: run.shots_taken(),
                     solution: run
                         .solution
                         .radiosity
@@ -446,11 +473,16 @@ pub fn machine(args: &MachineArgs) -> Result<(), UserError> {
             }
             let mut m = best.expect("at least one run");
             if args.instructions {
+                let plan = if args.main_job {
+                    "--main-job".to_string()
+                } else {
+                    format!("--shots={}", args.shots)
+                };
                 let child = child_args(
                     "machine",
                     (method, fidelity),
                     args.config.as_deref(),
-                    &[format!("--shots={}", args.shots)],
+                    &[plan],
                 );
                 m.instructions = Some(count_instructions(&child, "*Machine::run*")?);
             }
@@ -460,7 +492,9 @@ pub fn machine(args: &MachineArgs) -> Result<(), UserError> {
     }
     let agree = report.iter().all(|(_, runs)| {
         runs.windows(2).all(|w| {
-            w[0].simulated_seconds == w[1].simulated_seconds && w[0].solution == w[1].solution
+            w[0].simulated_seconds == w[1].simulated_seconds
+                && w[0].shots == w[1].shots
+                && w[0].solution == w[1].solution
         })
     });
     if args.json {
@@ -472,6 +506,7 @@ pub fn machine(args: &MachineArgs) -> Result<(), UserError> {
                     .map(|m| {
                         serde_json::json!({
                             "fidelity": m.fidelity.name(),
+                            "shots": m.shots,
                             "simulated_seconds": m.simulated_seconds,
                             "host_seconds": m.host_seconds,
                             "simulated_per_host_second": m.simulated_seconds / m.host_seconds,
@@ -489,7 +524,8 @@ pub fn machine(args: &MachineArgs) -> Result<(), UserError> {
             "config": cfg.name,
             "config_hash": pxpl5_config::config_hash(&cfg),
             "patches": patches.len(),
-            "shots": args.shots,
+            "main_job": args.main_job,
+            "shots": (!args.main_job).then_some(args.shots),
             "methods": methods,
             "levels_agree": agree,
         });
@@ -498,11 +534,17 @@ pub fn machine(args: &MachineArgs) -> Result<(), UserError> {
             serde_json::to_string_pretty(&out).map_err(UserError::from)?
         )?;
     } else {
+        let plan = if args.main_job {
+            "run as the main job runs it (until every surface is within 1 % of the reference; \
+             the reference's solve and the picture are not timed)"
+                .to_string()
+        } else {
+            format!("for {} shots per method", args.shots)
+        };
         outln!(
-            "pxpl5 bench machine: the main job's radiosity program for {} shots per method\n\
+            "pxpl5 bench machine: the main job's radiosity program {plan}\n\
              machine {} (hash {}): {} GPs, {} Renderers, {} ring channels; the empty Cornell box, \
              {} patches; host figures: fastest of {} runs",
-            args.shots,
             cfg.name,
             pxpl5_config::config_hash(&cfg),
             cfg.gp.count,
@@ -512,9 +554,10 @@ pub fn machine(args: &MachineArgs) -> Result<(), UserError> {
             args.repeat
         )?;
         outln!(
-            "\n{:<11} {:<9} {:>13} {:>10} {:>22}{}",
+            "\n{:<11} {:<9} {:>6} {:>13} {:>10} {:>22}{}",
             "method",
             "fidelity",
+            "shots",
             "simulated ms",
             "host CPU s",
             "simulated s per host s",
@@ -533,9 +576,10 @@ pub fn machine(args: &MachineArgs) -> Result<(), UserError> {
                     )
                 });
                 outln!(
-                    "{:<11} {:<9} {:>13.3} {:>10.3} {:>22.3}{counted}",
+                    "{:<11} {:<9} {:>6} {:>13.3} {:>10.3} {:>22.3}{counted}",
                     method.name(),
                     m.fidelity.name(),
+                    m.shots,
                     m.simulated_seconds * 1e3,
                     m.host_seconds,
                     m.simulated_seconds / m.host_seconds

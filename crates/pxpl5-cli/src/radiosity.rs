@@ -169,7 +169,7 @@ impl RadiosityArgs {
     }
 
     /// The library's settings for one method's run on `plan`.
-    fn settings(&self, method: Method, plan: &Plan) -> Settings {
+    pub(crate) fn settings(&self, method: Method, plan: &Plan) -> Settings {
         Settings {
             ff: FfOptions {
                 method,

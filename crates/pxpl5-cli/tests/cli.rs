@@ -183,6 +183,52 @@ fn machine_bench_levels_give_the_same_time_and_solution() {
     }
 }
 
+/// `bench machine --main-job` times each method as `pxpl5 radiosity` runs it: the same shots
+/// to the 1 % target and the same simulated time as the main job's own report, and a host
+/// figure for the simulation alone.
+#[test]
+fn machine_bench_runs_the_main_job_as_the_main_job_does() {
+    let out = pxpl5(&[
+        "bench",
+        "machine",
+        "--main-job",
+        "--method",
+        "hemicube",
+        "--fidelity",
+        "sparse",
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["main_job"], true);
+    assert!(v["shots"].is_null(), "no fixed number of shots");
+    let level = &v["methods"][0]["levels"][0];
+    let d = out_dir("bench-main-job");
+    let job = pxpl5(&[
+        "radiosity",
+        "--method",
+        "hemicube",
+        "-q",
+        "--out",
+        d.to_str().unwrap(),
+    ]);
+    assert!(job.status.success(), "{}", text(&job.stderr));
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("comparison.json")).unwrap()).unwrap();
+    let method = &json["methods"][0];
+    assert_eq!(level["shots"], method["shots"]);
+    assert_eq!(
+        level["simulated_seconds"].as_f64().unwrap(),
+        simulated_ps(&d) as f64 * 1e-12
+    );
+    // The main job takes hundreds of shots: more than a fixed run's default 24.
+    assert!(level["shots"].as_u64().unwrap() > 24, "{level}");
+    assert!(level["host_seconds"].as_f64().unwrap() > 0.0);
+    // A fixed number of shots and the main job's plan are one or the other.
+    let both = pxpl5(&["bench", "machine", "--main-job", "--shots", "3"]);
+    assert_eq!(both.status.code(), Some(2));
+}
+
 #[test]
 fn bench_counts_instructions_with_valgrind_or_says_it_needs_it() {
     let out = pxpl5(&[
