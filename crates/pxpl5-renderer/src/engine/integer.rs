@@ -673,21 +673,38 @@ impl IntegerEngine {
 /// passed: enable afterwards. Each pixel's comparison selects, without a branch, whether its
 /// word takes the stored window, so the compiler vectorises the loop as it does the compare's
 /// and the store's alone (the window cut by a logical shift, as [`store_group`]'s).
+///
+/// One loop per comparison, each testing its own relation: through the two facts a serial
+/// subtract yields (lhs < rhs, lhs == rhs) and the comparison's choice among them, as
+/// [`Cmp::from_lt_eq`] takes them, every pixel paid two tests and six masks.
 #[inline(always)]
 fn compare_store_run(
     words: &mut [u64],
-    (lo, hi): (u32, u32),
-    (a, w, key): (Access, Window, u32),
+    run: (u32, u32),
+    field: (Access, Window, u32),
     cmp: Cmp,
     at: impl Fn(u32) -> i64,
 ) -> u64 {
+    match cmp {
+        Cmp::Lt => compare_store_run_by(words, run, field, at, |l, r| l < r),
+        Cmp::Le => compare_store_run_by(words, run, field, at, |l, r| l <= r),
+        Cmp::Gt => compare_store_run_by(words, run, field, at, |l, r| l > r),
+        Cmp::Ge => compare_store_run_by(words, run, field, at, |l, r| l >= r),
+        Cmp::Eq => compare_store_run_by(words, run, field, at, |l, r| l == r),
+        Cmp::Ne => compare_store_run_by(words, run, field, at, |l, r| l != r),
+    }
+}
+
+/// [`compare_store_run`] for the comparison `passes(lhs, rhs)`.
+#[inline(always)]
+fn compare_store_run_by(
+    words: &mut [u64],
+    (lo, hi): (u32, u32),
+    (a, w, key): (Access, Window, u32),
+    at: impl Fn(u32) -> i64,
+    passes: impl Fn(i64, i64) -> bool,
+) -> u64 {
     let (clear, keep) = (!(a.mask << a.shift), mask(w.bits) & a.mask);
-    // Whether a pixel passes when its lhs is below, equal to or above its rhs, as all-ones or 0.
-    let (if_lt, if_eq, if_gt) = (
-        cmp.from_lt_eq(u64::MAX, 0),
-        cmp.from_lt_eq(0, u64::MAX),
-        cmp.from_lt_eq(0, 0),
-    );
     let mut passed = 0u64;
     // V linear along the row: stepped by one wrapping add a pixel, which vectorises as four
     // lanes stepped together, where `at(i)`'s 64-bit multiply has no AVX2 instruction.
@@ -697,11 +714,7 @@ fn compare_store_run(
         v = v.wrapping_add(step);
         let lhs = (value << key) as i64;
         let rhs = (((*word >> a.shift) & a.mask) << key) as i64;
-        let (lt, eq) = (
-            0u64.wrapping_sub(u64::from(lhs < rhs)),
-            0u64.wrapping_sub(u64::from(lhs == rhs)),
-        );
-        let pass = (lt & if_lt) | (eq & if_eq) | (!(lt | eq) & if_gt);
+        let pass = 0u64.wrapping_sub(u64::from(passes(lhs, rhs)));
         passed |= (pass & 1) << i;
         let stored = (*word & clear) | (value << a.shift);
         *word = (stored & pass) | (*word & !pass);
@@ -1181,7 +1194,7 @@ mod tests {
         ];
         for (width, height) in [(64, 7), (128, 9)] {
             let geometry = Geometry::new(width, height);
-            for trial in 0..120usize {
+            for trial in 0..150usize {
                 let depth = depths[trial % depths.len()];
                 let id = ids[trial / 5 % ids.len()].map(|f| (f, rng.next_u64() & 0xF));
                 let test = DepthTest {
