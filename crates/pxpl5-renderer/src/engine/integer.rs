@@ -629,12 +629,24 @@ impl IntegerEngine {
             let (py, px0) = (g / gpr, (g % gpr) * 64);
             let v = s.row_fn(py);
             let base = g * 64;
-            // A V linear along the row over one run of enabled pixels (a hemicube's receiver
-            // meets most groups so): compare and store in one loop.
+            // One run of enabled pixels (a receiver meets most groups so): compare and store in
+            // one loop, V stepped along the run by its differences.
             let run = one_run(en).filter(|_| store && window.shift + window.bits <= 64);
-            if let (Some(at), Some(run)) = (linear_in_group(v, px0), run) {
+            if let Some(run) = run {
                 let words = &mut self.limbs[a.limb][base..base + 64];
-                let passed = compare_store_run(words, run, (a, window, key), cmp, at);
+                let field = (a, window, key);
+                let passed = match linear_in_group(v, px0) {
+                    Some(at) => compare_store_run(words, run, field, cmp, linear_steps(at, run.0)),
+                    // A quadratic V (a hemisphere's Taylor depth): one loop for every comparison,
+                    // which tests it a pixel. A loop per comparison here too made the build
+                    // larger, and the hemicube's linear loops slower (1.2 M more instructions
+                    // of `bench machine`'s hemicube).
+                    None => {
+                        let steps = quadratic_steps(v, px0, run.0);
+                        let passes = |l: i64, r: i64| cmp.holds(l.into(), r.into());
+                        compare_store_run_by(words, run, field, steps, passes)
+                    }
+                };
                 self.regs.enable[g] = passed;
                 if let Some((i, value)) = id {
                     const_group(&mut self.limbs[i.limb][base..base + 64], passed, (i, value));
@@ -668,11 +680,12 @@ impl IntegerEngine {
 }
 
 /// A depth test's compare and store over the one run `lo..hi` of a group's enabled pixels, in
-/// one loop, for a V linear along the row (`at(i)` at pixel i) and a window that ends at bit 64
-/// at most; the field inside one limb, `key` as for [`compare_group`]. Returns the pixels that
-/// passed: enable afterwards. Each pixel's comparison selects, without a branch, whether its
-/// word takes the stored window, so the compiler vectorises the loop as it does the compare's
-/// and the store's alone (the window cut by a logical shift, as [`store_group`]'s).
+/// one loop, V at each pixel of the run in turn from `next` (a [`linear_steps`] or
+/// [`quadratic_steps`]), a window that ends at bit 64 at most; the field inside one limb, `key`
+/// as for [`compare_group`]. Returns the pixels that passed: enable afterwards. Each pixel's
+/// comparison selects, without a branch, whether its word takes the stored window, so the
+/// compiler vectorises a linear V's loop as it does the compare's and the store's alone (the
+/// window cut by a logical shift, as [`store_group`]'s).
 ///
 /// One loop per comparison, each testing its own relation: through the two facts a serial
 /// subtract yields (lhs < rhs, lhs == rhs) and the comparison's choice among them, as
@@ -683,15 +696,15 @@ fn compare_store_run(
     run: (u32, u32),
     field: (Access, Window, u32),
     cmp: Cmp,
-    at: impl Fn(u32) -> i64,
+    next: impl FnMut() -> i64,
 ) -> u64 {
     match cmp {
-        Cmp::Lt => compare_store_run_by(words, run, field, at, |l, r| l < r),
-        Cmp::Le => compare_store_run_by(words, run, field, at, |l, r| l <= r),
-        Cmp::Gt => compare_store_run_by(words, run, field, at, |l, r| l > r),
-        Cmp::Ge => compare_store_run_by(words, run, field, at, |l, r| l >= r),
-        Cmp::Eq => compare_store_run_by(words, run, field, at, |l, r| l == r),
-        Cmp::Ne => compare_store_run_by(words, run, field, at, |l, r| l != r),
+        Cmp::Lt => compare_store_run_by(words, run, field, next, |l, r| l < r),
+        Cmp::Le => compare_store_run_by(words, run, field, next, |l, r| l <= r),
+        Cmp::Gt => compare_store_run_by(words, run, field, next, |l, r| l > r),
+        Cmp::Ge => compare_store_run_by(words, run, field, next, |l, r| l >= r),
+        Cmp::Eq => compare_store_run_by(words, run, field, next, |l, r| l == r),
+        Cmp::Ne => compare_store_run_by(words, run, field, next, |l, r| l != r),
     }
 }
 
@@ -701,17 +714,13 @@ fn compare_store_run_by(
     words: &mut [u64],
     (lo, hi): (u32, u32),
     (a, w, key): (Access, Window, u32),
-    at: impl Fn(u32) -> i64,
+    mut next: impl FnMut() -> i64,
     passes: impl Fn(i64, i64) -> bool,
 ) -> u64 {
     let (clear, keep) = (!(a.mask << a.shift), mask(w.bits) & a.mask);
     let mut passed = 0u64;
-    // V linear along the row: stepped by one wrapping add a pixel, which vectorises as four
-    // lanes stepped together, where `at(i)`'s 64-bit multiply has no AVX2 instruction.
-    let (mut v, step) = (at(lo), at(lo + 1).wrapping_sub(at(lo)));
     for (i, word) in (lo..hi).zip(&mut words[lo as usize..hi as usize]) {
-        let value = ((v as u64) >> w.shift) & keep;
-        v = v.wrapping_add(step);
+        let value = ((next() as u64) >> w.shift) & keep;
         let lhs = (value << key) as i64;
         let rhs = (((*word >> a.shift) & a.mask) << key) as i64;
         let pass = 0u64.wrapping_sub(u64::from(passes(lhs, rhs)));
@@ -720,6 +729,40 @@ fn compare_store_run_by(
         *word = (stored & pass) | (*word & !pass);
     }
     passed
+}
+
+/// V linear along the row (`at(i)` at pixel i), from pixel `lo` on, a pixel a call: stepped by
+/// one wrapping add, which vectorises as four lanes stepped together, where `at(i)`'s 64-bit
+/// multiply has no AVX2 instruction.
+#[inline(always)]
+fn linear_steps(at: impl Fn(u32) -> i64, lo: u32) -> impl FnMut() -> i64 {
+    let (mut v, step) = (at(lo), at(lo + 1).wrapping_sub(at(lo)));
+    move || {
+        let here = v;
+        v = v.wrapping_add(step);
+        here
+    }
+}
+
+/// V of row function `v` at the group's pixel `lo` (of the group at column `px0`) and on, a
+/// pixel a call, by forward differences: V(x + 1) - V(x) = D (2x + 1) + b, which grows by 2D a
+/// pixel. In wrapping arithmetic, so equal to [`RowFn::at`] modulo 2^64 and the same in every
+/// bit a window cuts; two adds a pixel where `at` takes two multiplies (a hemisphere's Taylor
+/// depth was compared and then stored, V found twice, at each enabled pixel one by one).
+#[inline(always)]
+fn quadratic_steps(v: RowFn, px0: usize, lo: u32) -> impl FnMut() -> i64 {
+    let x = v.x0.wrapping_add((px0 + lo as usize) as i64);
+    let mut value = v.at(px0 + lo as usize);
+    let mut diff =
+        v.d.wrapping_mul(x.wrapping_mul(2).wrapping_add(1))
+            .wrapping_add(v.b);
+    let twice_d = v.d.wrapping_mul(2);
+    move || {
+        let here = value;
+        value = value.wrapping_add(diff);
+        diff = diff.wrapping_add(twice_d);
+        here
+    }
 }
 
 /// Whether [`IntegerEngine::depth_test_groups`] takes `test`: its fields inside one limb each
