@@ -783,6 +783,14 @@ fn one_pass(test: DepthTest, window: Window) -> bool {
 #[inline(always)]
 fn const_group(pixels: &mut [u64], en: u64, (a, value): (Access, u64)) {
     let (clear, set) = (!(a.mask << a.shift), (value & a.mask) << a.shift);
+    // A whole group (a view's set-up clears its face): a loop of a length the compiler knows,
+    // without finding the run: 4.2 M of the 263.98 M instructions of `bench machine`'s hemicube.
+    if let (u64::MAX, Ok(all)) = (en, <&mut [u64; 64]>::try_from(&mut *pixels)) {
+        for w in all {
+            *w = (*w & clear) | set;
+        }
+        return;
+    }
     for_each_run(en, |lo, hi| {
         for w in &mut pixels[lo..hi] {
             *w = (*w & clear) | set;
