@@ -406,6 +406,18 @@ impl RowFn {
         let x = self.x0 + px as i64;
         (self.d * x + self.b) * x + self.r
     }
+
+    /// V's first difference along the row, `at(px + 1) - at(px) = D (2x + 1) + b`, linear in
+    /// the column: where a row's V turns, and its step from pixel to pixel. In wrapping
+    /// arithmetic, so equal to the exact difference modulo 2^64 (exactly it where, as the
+    /// config's bounds keep it, that fits i64).
+    #[inline]
+    pub fn diff(self, px: usize) -> i64 {
+        let x = self.x0.wrapping_add(px as i64);
+        self.d
+            .wrapping_mul(x.wrapping_mul(2).wrapping_add(1))
+            .wrapping_add(self.b)
+    }
 }
 
 #[cfg(test)]

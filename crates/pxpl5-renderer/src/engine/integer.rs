@@ -369,10 +369,7 @@ pub(super) fn sign_row<const CHECKS: bool>(
     }
     // f(px + 1) - f(px) = D (2x + 1) + b: linear in px, so f is monotone on [lo, k] and [k, hi]
     // where k is the first px at which the difference changes sign class.
-    let diff = |px: usize| {
-        let x = v.x0 + px as i64;
-        v.d * (2 * x + 1) + v.b
-    };
+    let diff = |px: usize| v.diff(px);
     let k = if lo == hi || (diff(lo) >= 0) == (diff(hi - 1) >= 0) {
         hi
     } else {
@@ -736,7 +733,8 @@ fn compare_store_run_by(
 /// multiply has no AVX2 instruction.
 #[inline(always)]
 fn linear_steps(at: impl Fn(u32) -> i64, lo: u32) -> impl FnMut() -> i64 {
-    let (mut v, step) = (at(lo), at(lo + 1).wrapping_sub(at(lo)));
+    let mut v = at(lo);
+    let step = at(lo + 1).wrapping_sub(v);
     move || {
         let here = v;
         v = v.wrapping_add(step);
@@ -751,11 +749,8 @@ fn linear_steps(at: impl Fn(u32) -> i64, lo: u32) -> impl FnMut() -> i64 {
 /// depth was compared and then stored, V found twice, at each enabled pixel one by one).
 #[inline(always)]
 fn quadratic_steps(v: RowFn, px0: usize, lo: u32) -> impl FnMut() -> i64 {
-    let x = v.x0.wrapping_add((px0 + lo as usize) as i64);
     let mut value = v.at(px0 + lo as usize);
-    let mut diff =
-        v.d.wrapping_mul(x.wrapping_mul(2).wrapping_add(1))
-            .wrapping_add(v.b);
+    let mut diff = v.diff(px0 + lo as usize);
     let twice_d = v.d.wrapping_mul(2);
     move || {
         let here = value;
