@@ -636,6 +636,9 @@ impl SparseEngine {
         if !ellipses.is_empty() {
             bands.extend(bounds.iter().filter_map(|b| BandBound::of(b, ellipses)));
         }
+        for s in steps.iter_mut() {
+            s.first_half = side(&ep.signs[s.first as usize], true);
+        }
         let steps = (&steps[..], &bands[..]);
         match g.groups_per_row {
             2 => and_rows(ep, steps, area, plane, Rows::new(ep, g, [0u64; 2])),
@@ -837,10 +840,10 @@ impl<'a, B: AsMut<[u64]> + AsRef<[u64]> + Clone> Rows<'a, B> {
     #[inline(always)]
     fn and_step(&mut self, step: &Step, py: usize, mask: &mut B) -> bool {
         let mask = mask.as_mut();
-        self.sign(step.first, py, span_of(mask, self.width), true);
         if let [m0, m1] = mask {
             return self.and_step_two(step, py, (m0, m1));
         }
+        self.sign(step.first, py, span_of(mask, self.width), true);
         // Where the result still depends on the second test: the pixels whose first sign is one
         // for which `op(sign, .)` is not constant. Elsewhere its bits are never read.
         let (dep0, dep1) = step.depends;
@@ -876,7 +879,13 @@ impl<B: AsMut<[u64]> + AsRef<[u64]> + Clone> Rows<'_, B> {
         let row = |w: &[u64]| u128::from(w[0]) | (u128::from(w[1]) << 64);
         let wide = |w: u64| u128::from(w) | (u128::from(w) << 64);
         let mask = u128::from(*m0) | (u128::from(*m1) << 64);
-        let p = row(self.a.as_ref());
+        let p = match step.first_half {
+            Some(h) => half_plane_bits(h, py, mask),
+            None => {
+                self.sign(step.first, py, span_of(&[*m0, *m1], self.width), true);
+                row(self.a.as_ref())
+            }
+        };
         let (dep0, dep1) = step.depends;
         let undecided = mask & ((p & wide(dep1)) | (!p & wide(dep0)));
         // The second test's bits where it can matter; elsewhere they are never read.
@@ -894,6 +903,26 @@ impl<B: AsMut<[u64]> + AsRef<[u64]> + Clone> Rows<'_, B> {
     }
 }
 
+/// The bits of half-plane `k0 + kx px + ky py >= 0` on row `py` of a two-group row, exact at
+/// the pixels of `mask` (nonzero; other bits unspecified): `linear_sign_row`'s answer without its
+/// row function, its buffer or its checks. Exact in i64 as `side` says.
+#[inline(always)]
+fn half_plane_bits([k0, kx, ky]: [i64; 3], py: usize, mask: u128) -> u128 {
+    let lo = mask.trailing_zeros() as usize;
+    let hi = 127 - mask.leading_zeros() as usize;
+    let c = k0 + ky * py as i64;
+    let (fa, fb) = (c + kx * lo as i64, c + kx * hi as i64);
+    match (fa >= 0, fb >= 0) {
+        (true, true) => u128::MAX,
+        (false, false) => 0,
+        // Rising (kx > 0, fa < 0): from lo + ceil(-fa / kx), as lo - floor(fa / kx), which no
+        // fa negates.
+        (false, true) => u128::MAX << (lo as i64 - fa.div_euclid(kx)) as usize,
+        // Falling (kx < 0, fa >= 0): up to lo + floor(fa / -kx).
+        (true, false) => u128::MAX >> (127 - (lo + (fa / -kx) as usize)),
+    }
+}
+
 /// A conjunct as the row solver takes it: `op(sign first, sign second)`, the first test the
 /// cheaper (linear along a row) where the conjunct has two, and the second solved only where
 /// the first leaves the result undecided.
@@ -906,6 +935,8 @@ struct Step {
     anf: Anf,
     /// All-ones where `op(0, .)`, and `op(1, .)`, depends on the second input.
     depends: (u64, u64),
+    /// The half-plane where the first test is 1, if it is linear and unwrapped (`side`).
+    first_half: Option<[i64; 3]>,
 }
 
 impl Step {
@@ -938,6 +969,8 @@ impl Step {
             op,
             anf: op.anf(),
             depends,
+            // Found only where rows are solved (`chain_plane`).
+            first_half: None,
         })
     }
 }
