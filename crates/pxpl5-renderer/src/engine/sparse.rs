@@ -1292,6 +1292,24 @@ impl Concave {
         let [f2, f1, f0] = self.k.map(to_f64);
         // An estimate's integer part, clamped by the search (`as` saturates, NaN gives 0).
         let guess = |t: f64| t.max(0.0) as usize;
+        // The real roots (-k1 -+ sqrt(D)) / (2 k2), the left one first (k2 < 0).
+        let root = (f1 * f1 - 4.0 * f2 * f0).max(0.0).sqrt();
+        let (left, right) = ((-f1 + root) / (2.0 * f2), (-f1 - root) / (2.0 * f2));
+        // Where the estimates are right, four exact values confirm them: the values at least
+        // 0 on lo ..= hi are one run (f is concave), which holds g and h and, unless they are
+        // its range's ends, neither g - 1 nor h + 1. The searches below cost four times that.
+        let (g, h) = (
+            guess(left).saturating_add(1).clamp(lo, hi),
+            guess(right).min(hi),
+        );
+        if g <= h
+            && self.at(g) >= 0
+            && self.at(h) >= 0
+            && (g == lo || self.at(g - 1) < 0)
+            && (h == hi || self.at(h + 1) < 0)
+        {
+            return Some(Some((g, h)));
+        }
         // k2 (2 t + 1) + k1 < 0 from t* on (k2 < 0); no overflow: |k| < 2^96, t < 2^14. The
         // real t* is (-k1 / k2 - 1) / 2, strictly above which the difference is negative.
         let falls = |t: usize| k2 * (2 * t as i128 + 1) + k1 < 0;
@@ -1300,10 +1318,7 @@ impl Concave {
         if self.at(peak) < 0 {
             return Some(None);
         }
-        // The real roots (-k1 -+ sqrt(D)) / (2 k2), the left one first (k2 < 0): f rises to
-        // peak, where it is at least 0, and falls after it.
-        let root = (f1 * f1 - 4.0 * f2 * f0).max(0.0).sqrt();
-        let (left, right) = ((-f1 + root) / (2.0 * f2), (-f1 - root) / (2.0 * f2));
+        // f rises to peak, where it is at least 0, and falls after it.
         let first = first_true(lo, peak, guess(left), |t| self.at(t) >= 0);
         let last = first_true(peak, hi, guess(right).saturating_add(1), |t| self.at(t) < 0) - 1;
         Some(Some((first, last)))
