@@ -1279,9 +1279,10 @@ impl Concave {
     /// The first and last t of `lo ..= hi` where the value is at least 0 (`Some(None)`: none
     /// is); `None` if `hi` is beyond [`T_LIMIT`]. Rising up to the integer maximum t*, the
     /// first t at which `f(t + 1) - f(t) = k2 (2 t + 1) + k1` is negative, and falling after
-    /// it. Each of t* and the two ends is the first t of a range at which a predicate monotone
-    /// on it holds, searched exactly from its real value estimated in f64 (`first_true`): the
-    /// estimate only says where to start. Bisections from the ends, and t* by an i128
+    /// it. The ends' real values, estimated in f64, are taken where four exact values confirm
+    /// them; else each of t* and the two ends is the first t of a range at which a predicate
+    /// monotone on it holds, searched exactly from its estimate (`first_true`): the estimate
+    /// only says where to start. Bisections from the ends, and t* by an i128
     /// division (a library call), cost 2.5 % of the main job's hemisphere CPU time (`perf
     /// record`): a bisection's branches are taken either way.
     fn at_least_zero(&self, lo: usize, hi: usize) -> Option<Option<(usize, usize)>> {
