@@ -162,6 +162,8 @@ struct Scratch {
     half_planes: Vec<[i64; 3]>,
     bands: Vec<BandBound>,
     spans: Vec<(i64, i64)>,
+    /// The rows' hints, one a sign test (`Rows`).
+    hints: Vec<Hints>,
 }
 
 impl SparseEngine {
@@ -577,6 +579,7 @@ impl SparseEngine {
             half_planes,
             bands,
             spans,
+            hints,
         } = scratch;
         steps.clear();
         for &v in &ep.conj {
@@ -641,8 +644,14 @@ impl SparseEngine {
         }
         let steps = (&steps[..], &bands[..]);
         match g.groups_per_row {
-            2 => and_rows(ep, steps, area, plane, Rows::new(ep, g, [0u64; 2])),
-            n => and_rows(ep, steps, area, plane, Rows::new(ep, g, vec![0u64; n])),
+            2 => and_rows(ep, steps, area, plane, Rows::new(ep, g, [0u64; 2], hints)),
+            n => and_rows(
+                ep,
+                steps,
+                area,
+                plane,
+                Rows::new(ep, g, vec![0u64; n], hints),
+            ),
         }
     }
 
@@ -684,7 +693,8 @@ impl SparseEngine {
         let newest = runs.len() - 1;
         for (r, run) in runs.iter().enumerate().rev() {
             let ep = self.epoch(run[0].epoch);
-            let mut rows = Rows::new(ep, g, vec![0u64; gpr]);
+            let mut hints = Vec::new();
+            let mut rows = Rows::new(ep, g, vec![0u64; gpr], &mut hints);
             for (py, out) in plane.chunks_exact_mut(gpr).enumerate() {
                 let at = py * gpr..py * gpr + gpr;
                 if r == newest {
@@ -792,17 +802,21 @@ impl pulp::WithSimd for ChainPlane<'_> {
 struct Rows<'a, B> {
     ep: &'a Epoch,
     width: usize,
-    hints: Vec<Hints>,
+    hints: &'a mut Vec<Hints>,
     a: B,
     b: B,
 }
 
 impl<'a, B: AsMut<[u64]> + AsRef<[u64]> + Clone> Rows<'a, B> {
-    fn new(ep: &'a Epoch, g: Geometry, buffer: B) -> Rows<'a, B> {
+    /// Rows of epoch `ep`, keeping their hints in `hints` (a list reused from one chain to the
+    /// next: allocated anew, a receiver's cost 1 % of `bench renderer`'s hemisphere stream).
+    fn new(ep: &'a Epoch, g: Geometry, buffer: B, hints: &'a mut Vec<Hints>) -> Rows<'a, B> {
+        hints.clear();
+        hints.resize(ep.signs.len(), Hints::new(g.width));
         Rows {
             ep,
             width: g.width,
-            hints: vec![Hints::new(g.width); ep.signs.len()],
+            hints,
             a: buffer.clone(),
             b: buffer,
         }
