@@ -824,6 +824,19 @@ impl<'a, B: AsMut<[u64]> + AsRef<[u64]> + Clone> Rows<'a, B> {
 
     /// `v` on row `py`, exact at the pixels of `mask` (a nonzero row); other bits unspecified.
     fn value(&mut self, v: Value, py: usize, mask: &[u64]) -> &[u64] {
+        // A function of one linear test on a two-group row (a vertical edge's conjunct, which
+        // gates the layers a flag's replay solves on most rows of the board): its half-plane's
+        // bits, without the row solver.
+        if v.a == v.b
+            && let [m0, m1] = *mask
+            && let Some(h) = side(&self.ep.signs[v.a as usize], true)
+        {
+            let p = half_plane_bits(h, py, u128::from(m0) | (u128::from(m1) << 64));
+            let a = self.a.as_mut();
+            a[0] = v.op.apply(p as u64, p as u64);
+            a[1] = v.op.apply((p >> 64) as u64, (p >> 64) as u64);
+            return self.a.as_ref();
+        }
         let span = span_of(mask, self.width);
         self.sign(v.a, py, span, true);
         if v.a != v.b {
