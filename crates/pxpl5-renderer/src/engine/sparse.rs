@@ -895,8 +895,9 @@ impl<'a, B: AsMut<[u64]> + AsRef<[u64]> + Clone> Rows<'a, B> {
 }
 
 impl<B: AsMut<[u64]> + AsRef<[u64]> + Clone> Rows<'_, B> {
-    /// [`Rows::and_step`] on the seed's two-group row, after the first test's bits are in
-    /// buffer a: the row as one u128 in registers. The sign rows are written a word at a time,
+    /// [`Rows::and_step`] on the seed's two-group row: the row as one u128 in registers, the
+    /// first test's bits from its half-plane where `chain_plane` found one (`Step::first_half`)
+    /// and else solved into buffer a. The sign rows are written a word at a time,
     /// and reading them back as one 16-byte vector (as the compiler vectorised the loops over
     /// two words) waited for both stores to retire instead of taking their values forwarded:
     /// the two loads were the row solver's hottest instructions (`perf annotate`), about 3 %
