@@ -442,7 +442,8 @@ fn split(diff0: i64, d: i64, last: usize) -> Option<usize> {
 }
 
 /// [`sign_row`] for a row along which V is linear, `f(px) = f(lo) + b (px - lo)`: the end of
-/// the span by one exact integer division.
+/// the span by one exact integer division. The `sparse` level's two-group rows take a linear,
+/// unwrapped test's bits the same way, as one u128 (`sparse::half_plane_bits`).
 #[inline(always)]
 fn linear_sign_row<const CHECKS: bool>(
     v: RowFn,
