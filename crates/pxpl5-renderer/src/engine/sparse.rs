@@ -373,17 +373,23 @@ impl SparseEngine {
     }
 
     /// Push a layer onto flag f under epoch e's chain at its tip, first dropping the layers it
-    /// covers.
+    /// covers: a layer of another epoch is covered where the new chain's base holds the old's
+    /// and each of the new gate's conjuncts is one of the old gate's (`implies`), so that the
+    /// old gate lies inside the new one. A receiver whose first edge is vertical writes its
+    /// layers after that edge's conjunct; on a wall, the receivers of one column of patches
+    /// share that edge, and each one's layers now drop the last one's: unchecked, they piled
+    /// up (one epoch a receiver, 16 on a flag of `bench renderer`'s hemisphere stream), and
+    /// replaying them was 6 % of its instructions.
     fn push_layer(&mut self, f: u8, e: u32, value: Value) {
         let f = f as usize;
         let k = self.epoch(e).conj.len() as u32;
-        // The last other epoch checked, and whether the new gate covers its base.
+        // The last other epoch checked, and whether the new chain's base holds its base.
         let mut checked: Option<(u32, bool)> = None;
         while let Some(top) = self.layers[f].last().copied() {
             let covered = if top.epoch == e {
                 top.k >= k
-            } else if k == 0 {
-                match checked {
+            } else {
+                let base = match checked {
                     Some((c, covered)) if c == top.epoch => covered,
                     _ => {
                         let (new, old) = (self.epoch(e), self.epoch(top.epoch));
@@ -391,9 +397,8 @@ impl SparseEngine {
                         checked = Some((top.epoch, covered));
                         covered
                     }
-                }
-            } else {
-                false
+                };
+                base && self.implies((top.epoch, top.k), (e, k))
             };
             if !covered {
                 break;
@@ -406,6 +411,21 @@ impl SparseEngine {
         if self.layers[f].len() > MAX_LAYERS {
             self.materialise_flag(f);
         }
+    }
+
+    /// Whether the first `k_old` conjuncts of epoch `old` imply the first `k` of epoch `new`:
+    /// each of the latter is, as a function of the pixel, one of the former (the same op of
+    /// the same sign tests). Checked pairwise: a gate has a few conjuncts (a receiver's edges).
+    fn implies(&self, (old, k_old): (u32, u32), (new, k): (u32, u32)) -> bool {
+        let (old, new) = (self.epoch(old), self.epoch(new));
+        let old_conj = &old.conj[..k_old as usize];
+        new.conj[..k as usize].iter().all(|v| {
+            old_conj.iter().any(|w| {
+                v.op == w.op
+                    && same_test(&new.signs[v.a as usize], &old.signs[w.a as usize])
+                    && same_test(&new.signs[v.b as usize], &old.signs[w.b as usize])
+            })
+        })
     }
 
     /// A new epoch starting from `base` (a materialised plane), counted once. Freed epochs keep
@@ -1927,6 +1947,13 @@ fn holds(outer: &[u64], inner: &[u64]) -> bool {
         .zip(inner)
         .fold(0, |outside, (&o, &i)| outside | (i & !o))
         == 0
+}
+
+/// Whether two sign tests are the same function of the pixel's address: the same expression
+/// at the same origin, its sign taken in the same window.
+fn same_test(s: &SignTerm, t: &SignTerm) -> bool {
+    let (a, b) = (&s.streams, &t.streams);
+    a.expr == b.expr && (a.origin_x, a.origin_y) == (b.origin_x, b.origin_y) && s.window == t.window
 }
 
 /// The op's result for one pixel's inputs.
