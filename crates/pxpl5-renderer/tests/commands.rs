@@ -376,6 +376,31 @@ fn program_mistakes_are_errors_not_panics() {
         ),
         CommandError::NoSuchFlag { .. }
     ));
+    // Each register of a Logic step, and a sign test's destination, is checked.
+    assert!(matches!(
+        err(
+            &mut b,
+            Command::Logic {
+                dst: Bit::Enable,
+                a: Bit::Enable,
+                b: Bit::Flag(7),
+                op: LogicOp::A
+            }
+        ),
+        CommandError::NoSuchFlag { flag: 7, .. }
+    ));
+    assert!(matches!(
+        err(
+            &mut b,
+            Command::QeeSign {
+                expr: QeeExpr::default(),
+                window: Window { shift: 0, bits: 8 },
+                dst: Bit::Flag(8),
+                combine: LogicOp::B
+            }
+        ),
+        CommandError::NoSuchFlag { flag: 8, .. }
+    ));
     assert!(matches!(
         err(
             &mut b,
