@@ -15,7 +15,7 @@ use super::{
     value_of,
 };
 use crate::command::{Bit, Cmp, Field, LogicOp, Rect};
-use crate::qee::{RowFn, Streams, Window, mask};
+use crate::qee::{QeeExpr, RowFn, Streams, Window, mask};
 
 /// Per-pixel integer pixel memory and the shared one-bit registers.
 pub struct IntegerEngine {
@@ -240,17 +240,19 @@ impl Unwrapped {
 /// Whether a sign test of `s` through `window` may meet, somewhere on a board of `geometry`, a
 /// value the window cannot hold unwrapped: then its rows are checked one by one (`CHECKS`).
 pub(super) fn may_wrap(s: &Streams, window: Window, geometry: Geometry) -> bool {
-    may_wrap_within(s, window, (geometry.width, geometry.height))
+    let origin = (s.origin_x as u32, s.origin_y as u32);
+    may_wrap_within(&s.expr, origin, window, (geometry.width, geometry.height))
 }
 
-/// [`may_wrap`] on the board's first `width` columns of its first `height` rows only.
+/// [`may_wrap`] for `expr` at board origin `origin`, on the board's first `width` columns of
+/// its first `height` rows only.
 pub(super) fn may_wrap_within(
-    s: &Streams,
+    expr: &QeeExpr,
+    origin: (u32, u32),
     window: Window,
     (width, height): (usize, usize),
 ) -> bool {
-    let origin = (s.origin_x as u32, s.origin_y as u32);
-    let bound = s.expr.bound(origin, width as u32, height as u32);
+    let bound = expr.bound(origin, width as u32, height as u32);
     bound > Unwrapped::of(window).max as u128
 }
 

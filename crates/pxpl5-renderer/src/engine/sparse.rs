@@ -54,7 +54,7 @@ use std::sync::Arc;
 use super::integer::{Hints, IntegerEngine, Unwrapped, first_true, may_wrap_within, sign_row};
 use super::{DepthTest, Geometry, PixelEngine, QeeSink, Registers, gated};
 use crate::command::{Anf, Bit, Cmp, Command, Field, LogicOp, Rect};
-use crate::qee::{Streams, Window};
+use crate::qee::{QeeExpr, RowFn, Streams, Window};
 
 /// Most layers one flag holds before it is materialised, and most epochs alive before every flag
 /// is: bounds on host memory for streams whose layers are never overwritten (each epoch keeps a
@@ -68,13 +68,23 @@ const MAX_CONJUNCTS: usize = 63;
 
 /// A deferred sign test: W >= 0 of its expression at the origin it was issued with.
 struct SignTerm {
-    streams: Streams,
+    expr: QeeExpr,
+    /// The board's region origin, (x, y).
+    origin: (i64, i64),
     window: Window,
     range: Unwrapped,
     /// Whether a row's values may leave the window's unwrapped range somewhere in its epoch's
     /// area, the columns and rows of the board up to the area's last (`may_wrap_within`): no
     /// pixel outside the area is ever read.
     checks: bool,
+}
+
+impl SignTerm {
+    /// Its expression's row `py`.
+    #[inline(always)]
+    fn row_fn(&self, py: usize) -> RowFn {
+        RowFn::of(&self.expr, self.origin, py)
+    }
 }
 
 /// `op(sign a, sign b)` of two sign tests of one epoch (a = b for a function of one).
@@ -217,16 +227,14 @@ impl SparseEngine {
                 // board origin whose window holds their values on the face but not on the rest
                 // of the board, then have their edges as half-planes (`side`) like the other
                 // faces': 52 K of the main job's 474 K edges were solved row by row.
-                let term = |area: Option<Area>| {
-                    let streams = Streams::for_rows(expr, origin);
-                    SignTerm {
-                        checks: area.is_none_or(|a| {
-                            may_wrap_within(&streams, window, (a.x1 + 1, a.y1 + 1))
-                        }),
-                        streams,
-                        window,
-                        range: Unwrapped::of(window),
-                    }
+                let term = |area: Option<Area>| SignTerm {
+                    checks: area.is_none_or(|a| {
+                        may_wrap_within(expr, origin, window, (a.x1 + 1, a.y1 + 1))
+                    }),
+                    expr: *expr,
+                    origin: (i64::from(origin.0), i64::from(origin.1)),
+                    window,
+                    range: Unwrapped::of(window),
                 };
                 match dst {
                     // dst := combine(dst, S) with combine ignoring dst's old value.
@@ -382,50 +390,43 @@ impl SparseEngine {
     /// replaying them was 6 % of its instructions.
     fn push_layer(&mut self, f: u8, e: u32, value: Value) {
         let f = f as usize;
-        let k = self.epoch(e).conj.len() as u32;
+        let Self {
+            layers,
+            epochs,
+            free,
+            no_base,
+            ..
+        } = self;
+        let layers = &mut layers[f];
+        let k = epochs[e as usize].conj.len() as u32;
         // The last other epoch checked, and whether the new chain's base holds its base.
         let mut checked: Option<(u32, bool)> = None;
-        while let Some(top) = self.layers[f].last().copied() {
+        while let Some(&top) = layers.last() {
             let covered = if top.epoch == e {
                 top.k >= k
             } else {
+                let (new, old) = (&epochs[e as usize], &epochs[top.epoch as usize]);
                 let base = match checked {
                     Some((c, covered)) if c == top.epoch => covered,
                     _ => {
-                        let (new, old) = (self.epoch(e), self.epoch(top.epoch));
                         let covered = new.base_id == old.base_id || holds(&new.base, &old.base);
                         checked = Some((top.epoch, covered));
                         covered
                     }
                 };
-                base && self.implies((top.epoch, top.k), (e, k))
+                base && implies((old, top.k), (new, k))
             };
             if !covered {
                 break;
             }
-            self.layers[f].pop();
-            self.release(top.epoch);
+            layers.pop();
+            release(epochs, free, no_base, top.epoch);
         }
-        self.epoch_mut(e).refs += 1;
-        self.layers[f].push(Layer { epoch: e, k, value });
-        if self.layers[f].len() > MAX_LAYERS {
+        epochs[e as usize].refs += 1;
+        layers.push(Layer { epoch: e, k, value });
+        if layers.len() > MAX_LAYERS {
             self.materialise_flag(f);
         }
-    }
-
-    /// Whether the first `k_old` conjuncts of epoch `old` imply the first `k` of epoch `new`:
-    /// each of the latter is, as a function of the pixel, one of the former (the same op of
-    /// the same sign tests). Checked pairwise: a gate has a few conjuncts (a receiver's edges).
-    fn implies(&self, (old, k_old): (u32, u32), (new, k): (u32, u32)) -> bool {
-        let (old, new) = (self.epoch(old), self.epoch(new));
-        let old_conj = &old.conj[..k_old as usize];
-        new.conj[..k as usize].iter().all(|v| {
-            old_conj.iter().any(|w| {
-                v.op == w.op
-                    && same_test(&new.signs[v.a as usize], &old.signs[w.a as usize])
-                    && same_test(&new.signs[v.b as usize], &old.signs[w.b as usize])
-            })
-        })
     }
 
     /// A new epoch starting from `base` (a materialised plane), counted once. Freed epochs keep
@@ -489,12 +490,7 @@ impl SparseEngine {
     }
 
     fn release(&mut self, e: u32) {
-        let ep = &mut self.epochs[e as usize];
-        ep.refs -= 1;
-        if ep.refs == 0 {
-            ep.base = Arc::clone(&self.no_base);
-            self.free.push(e);
-        }
+        release(&mut self.epochs, &mut self.free, &self.no_base, e);
     }
 
     fn epoch(&self, e: u32) -> &Epoch {
@@ -875,7 +871,7 @@ impl<'a, B: AsMut<[u64]> + AsRef<[u64]> + Clone> Rows<'a, B> {
         let t = &self.ep.signs[s as usize];
         let out = if into_a { &mut self.a } else { &mut self.b };
         let hints = &mut self.hints[s as usize];
-        let row = t.streams.row_fn(py);
+        let row = t.row_fn(py);
         if t.checks {
             sign_row::<true>(row, (t.window, t.range), span, out.as_mut(), hints);
         } else {
@@ -997,7 +993,7 @@ impl Step {
             op = table(|p, _| eval(v.op, p, if v.a == v.b { p } else { false }));
             second = first;
         } else {
-            let linear = |s: u32| signs[s as usize].streams.expr.d == 0;
+            let linear = |s: u32| signs[s as usize].expr.d == 0;
             if ignores_a(op) || (linear(second) && !linear(first)) {
                 std::mem::swap(&mut first, &mut second);
                 op = table(|p, q| eval(v.op, q, p));
@@ -1098,11 +1094,11 @@ impl Step {
 /// sum taken with it (`narrow`) are sums of the terms `QeeExpr::bound` adds for the board up to
 /// the epoch's area (`SignTerm::checks`), which the window's unwrapped range holds.
 fn side(t: &SignTerm, positive: bool) -> Option<[i64; 3]> {
-    let e = &t.streams.expr;
+    let e = &t.expr;
     if t.checks || e.is_quadratic() {
         return None;
     }
-    let k0 = e.a * t.streams.origin_x + e.b * t.streams.origin_y + e.c;
+    let k0 = e.a * t.origin.0 + e.b * t.origin.1 + e.c;
     // W >= 0 where V >= 0; W < 0 where -V - 1 >= 0.
     Some(if positive {
         [k0, e.a, e.b]
@@ -1168,11 +1164,8 @@ impl Ellipse {
     /// board pixel (px, py), if that region is an ellipse's inside and every coefficient fits
     /// i128.
     fn of(t: &SignTerm, negated: bool) -> Option<Ellipse> {
-        let e = &t.streams.expr;
-        let (ox, oy) = (
-            i128::from(t.streams.origin_x),
-            i128::from(t.streams.origin_y),
-        );
+        let e = &t.expr;
+        let (ox, oy) = (i128::from(t.origin.0), i128::from(t.origin.1));
         let [a, b, c, d, ee, f] = e.raw().map(i128::from);
         // V at x = ox + px, y = oy + py, as a quadratic in (px, py); checked, since an origin
         // and coefficients at their extremes overflow even i128.
@@ -1949,11 +1942,35 @@ fn holds(outer: &[u64], inner: &[u64]) -> bool {
         == 0
 }
 
+/// Whether the first `k_old` conjuncts of epoch `old` imply the first `k` of epoch `new`: each
+/// of the latter is, as a function of the pixel, one of the former (the same op of the same sign
+/// tests). Checked pairwise: a gate has a few conjuncts (a receiver's edges).
+fn implies((old, k_old): (&Epoch, u32), (new, k): (&Epoch, u32)) -> bool {
+    let old_conj = &old.conj[..k_old as usize];
+    new.conj[..k as usize].iter().all(|v| {
+        old_conj.iter().any(|w| {
+            v.op == w.op
+                && same_test(&new.signs[v.a as usize], &old.signs[w.a as usize])
+                && same_test(&new.signs[v.b as usize], &old.signs[w.b as usize])
+        })
+    })
+}
+
+/// Drop one reference to epoch `e` of `epochs`, freeing it (onto `free`, its base replaced by
+/// `no_base`) at the last.
+fn release(epochs: &mut [Epoch], free: &mut Vec<u32>, no_base: &Arc<Vec<u64>>, e: u32) {
+    let ep = &mut epochs[e as usize];
+    ep.refs -= 1;
+    if ep.refs == 0 {
+        ep.base = Arc::clone(no_base);
+        free.push(e);
+    }
+}
+
 /// Whether two sign tests are the same function of the pixel's address: the same expression
 /// at the same origin, its sign taken in the same window.
 fn same_test(s: &SignTerm, t: &SignTerm) -> bool {
-    let (a, b) = (&s.streams, &t.streams);
-    a.expr == b.expr && (a.origin_x, a.origin_y) == (b.origin_x, b.origin_y) && s.window == t.window
+    s.expr == t.expr && s.origin == t.origin && s.window == t.window
 }
 
 /// The op's result for one pixel's inputs.
@@ -2045,7 +2062,6 @@ impl PixelEngine for SparseEngine {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::QeeExpr;
 
     /// A xorshift for the tests below: values in `lo ..= hi`.
     fn draw(state: &mut u64, lo: i64, hi: i64) -> i64 {
@@ -2066,7 +2082,8 @@ mod tests {
         let q = QeeExpr::ellipse((cx, cy), (kx, e, ky), r2).raw();
         let expr = QeeExpr::from_raw(if negated { q.map(|k| -k) } else { q });
         let t = SignTerm {
-            streams: Streams::for_rows(&expr, (ox as u32, oy as u32)),
+            expr,
+            origin: (ox, oy),
             window: Window { shift: 0, bits: 64 },
             range: Unwrapped::of(Window { shift: 0, bits: 64 }),
             checks: false,
@@ -2109,7 +2126,7 @@ mod tests {
                     let (kx, ky) = (draw(&mut r, -40, 40), draw(&mut r, -40, 40));
                     QeeExpr::from_raw([kx, ky, -(kx * cx + ky * cy), 0, 0, 0])
                 } else {
-                    random_ellipse(&mut r).0.streams.expr
+                    random_ellipse(&mut r).0.expr
                 };
                 let window = expr.sign_window(origin, 128, 128);
                 let cmd = Command::QeeSign {
@@ -2320,7 +2337,7 @@ mod tests {
             };
             let b = ellipse.box_in(all, ellipse.axes().as_ref());
             for py in 0..h {
-                let row = t.streams.row_fn(py);
+                let row = t.row_fn(py);
                 for px in 0..w {
                     let v = row.at(px);
                     if (v >= 0) != negated {
@@ -2353,7 +2370,7 @@ mod tests {
             let Some(ellipse) = Ellipse::of(&t, negated) else {
                 continue;
             };
-            let inside = |px: usize, py: usize| (t.streams.row_fn(py).at(px) >= 0) != negated;
+            let inside = |px: usize, py: usize| (t.row_fn(py).at(px) >= 0) != negated;
             // A half-plane through the board, either way up.
             let (hx, hy) = (draw(&mut r, -9, 9), draw(&mut r, -9, 9));
             let k0 = -(hx * draw(&mut r, 0, 127) + hy * draw(&mut r, 0, 127));
