@@ -878,7 +878,7 @@ fn a_layer_under_another_receivers_test_is_kept_unless_covered() {
     let window = edge.sign_window((0, 0), 512, 512);
     // Its low three bits' sign: another function (V wraps in it).
     let other_window = Window { shift: 0, bits: 3 };
-    let stream = |second: Command, origin: (u32, u32), w2: Window| {
+    let stream = |second: LogicOp, origin: (u32, u32), w2: Window| {
         vec![
             Command::SetOrigin { x: 0, y: 0 },
             Command::enable_all(),
@@ -903,7 +903,7 @@ fn a_layer_under_another_receivers_test_is_kept_unless_covered() {
                 expr: edge,
                 window: w2,
                 dst: Bit::Enable,
-                combine: second_op(&second),
+                combine: second,
             },
             Command::QeeSign {
                 expr: edge,
@@ -913,25 +913,13 @@ fn a_layer_under_another_receivers_test_is_kept_unless_covered() {
             },
         ]
     };
-    fn second_op(c: &Command) -> LogicOp {
-        match c {
-            Command::Logic { op, .. } => *op,
-            _ => unreachable!(),
-        }
-    }
-    let op = |op| Command::Logic {
-        dst: Bit::Enable,
-        a: Bit::Enable,
-        b: Bit::Enable,
-        op,
-    };
     for (second, origin, w2) in [
-        (op(LogicOp::AND_NOT), (0, 0), window),
+        (LogicOp::AND_NOT, (0, 0), window),
         // Moved down, the test holds on fewer pixels than the first's.
-        (op(LogicOp::AND), (0, 5), window),
-        (op(LogicOp::AND), (0, 0), other_window),
-        // Covered: the same test, its layer dropped.
-        (op(LogicOp::AND), (0, 0), window),
+        (LogicOp::AND, (0, 5), window),
+        (LogicOp::AND, (0, 0), other_window),
+        // Covered: the same test, whose layer the sparse level drops.
+        (LogicOp::AND, (0, 0), window),
     ] {
         sparse_follows_integer(&small(), &stream(second, origin, w2)).unwrap();
     }
