@@ -924,3 +924,108 @@ fn a_layer_under_another_receivers_test_is_kept_unless_covered() {
         sparse_follows_integer(&small(), &stream(second, origin, w2)).unwrap();
     }
 }
+
+/// A chain started from a flag's plane shares the last chain's base without comparing planes
+/// while no command has written that flag since; each way a command writes a flag without
+/// being deferred (a Logic step, a sign test that reads the flag's old value, a comparison of
+/// fields) must make the next chain from it see the new plane.
+#[test]
+fn a_chain_from_a_rewritten_flag_starts_from_its_new_plane() {
+    let edge = QeeExpr::from_raw([3, -2, -40, 0, 0, 0]);
+    let window = edge.sign_window((0, 0), 64, 16);
+    let other = QeeExpr::from_raw([-1, 4, 10, 0, 0, 0]);
+    let field = Field {
+        offset: 0,
+        bits: 8,
+        signed: true,
+    };
+    let (a, b) = (
+        field,
+        Field {
+            offset: 8,
+            bits: 8,
+            signed: true,
+        },
+    );
+    let rewrites = [
+        // Not deferred: enable is not a chain when it runs.
+        Command::Logic {
+            dst: Bit::Flag(0),
+            a: Bit::Flag(0),
+            b: Bit::Flag(0),
+            op: LogicOp::NOT_B,
+        },
+        // Reads the flag's old value.
+        Command::QeeSign {
+            expr: other,
+            window: other.sign_window((0, 0), 64, 16),
+            dst: Bit::Flag(0),
+            combine: LogicOp::AND,
+        },
+        Command::Compare {
+            a,
+            b,
+            cmp: Cmp::Lt,
+            dst: Bit::Flag(0),
+            combine: LogicOp::B,
+        },
+    ];
+    for rewrite in rewrites {
+        let from_flag = Command::Logic {
+            dst: Bit::Enable,
+            a: Bit::Flag(0),
+            b: Bit::Flag(0),
+            op: LogicOp::A,
+        };
+        let stream = [
+            Command::SetOrigin { x: 0, y: 0 },
+            Command::enable_all(),
+            Command::QeeStore {
+                expr: other,
+                window: Window { shift: 0, bits: 8 },
+                dst: b,
+            },
+            Command::QeeSign {
+                expr: edge,
+                window,
+                dst: Bit::Flag(0),
+                combine: LogicOp::B,
+            },
+            from_flag.clone(),
+            Command::WriteConst { dst: a, value: 5 },
+            // Gated by enable, now the flag's plane: no other chain starts in between.
+            rewrite,
+            from_flag,
+            Command::WriteConst { dst: a, value: 9 },
+        ];
+        sparse_follows_integer(&small(), &stream).unwrap();
+    }
+    // A deferred sign test's layer on the flag, under the chain started from it: the next
+    // chain from the flag starts from the plane with the layer replayed.
+    let from_flag = Command::Logic {
+        dst: Bit::Enable,
+        a: Bit::Flag(0),
+        b: Bit::Flag(0),
+        op: LogicOp::A,
+    };
+    let stream = [
+        Command::SetOrigin { x: 0, y: 0 },
+        Command::enable_all(),
+        Command::QeeSign {
+            expr: edge,
+            window,
+            dst: Bit::Flag(0),
+            combine: LogicOp::B,
+        },
+        from_flag.clone(),
+        Command::QeeSign {
+            expr: other,
+            window: other.sign_window((0, 0), 64, 16),
+            dst: Bit::Flag(0),
+            combine: LogicOp::B,
+        },
+        from_flag,
+        Command::WriteConst { dst: a, value: 9 },
+    ];
+    sparse_follows_integer(&small(), &stream).unwrap();
+}
