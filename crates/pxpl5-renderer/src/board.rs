@@ -885,9 +885,10 @@ impl Pixels {
         };
         let every_group = matches!(writes, Some(Some(op)) if !op.keeps_zero());
         if writes.is_some() && !every_group {
-            let regs = self.engine.get().registers();
+            let engine = self.engine.get();
+            let regs = engine.registers();
             if !self.enabled_valid {
-                regs.enabled_groups(&mut self.enabled);
+                engine.enabled_groups(&mut self.enabled);
                 self.enabled_valid = true;
             } else if self.enabled_superset {
                 self.enabled.retain(|&g| regs.enable[g as usize] != 0);

@@ -186,16 +186,21 @@ impl Registers {
     /// group). They go into a buffer the caller reuses (a board keeps one, so a command allocates
     /// nothing).
     pub fn enabled_groups(&self, out: &mut Vec<u32>) {
+        self.enabled_groups_in(0..self.enable.len(), out);
+    }
+
+    /// [`Registers::enabled_groups`] for an enable that has no pixel outside groups `within`.
+    pub fn enabled_groups_in(&self, within: std::ops::Range<usize>, out: &mut Vec<u32>) {
         out.clear();
-        out.resize(self.enable.len(), 0);
+        out.resize(within.len(), 0);
         let mut k = 0;
         // Sixteen groups at a time: a view's enable is mostly zero once its first edges are
         // drawn (a receiver's, a few rows of the board), and an all-zero run costs one test;
         // elsewhere branch-free, writing every group and advancing past the enabled ones. The
         // hemicube stream took 20.86 M instructions with four groups a test, 20.75 M with
         // eight, 20.67 M with sixteen and 20.85 M with 32.
-        let mut chunks = self.enable.chunks_exact(16);
-        let mut g = 0u32;
+        let mut g = within.start as u32;
+        let mut chunks = self.enable[within].chunks_exact(16);
         for c in &mut chunks {
             if c.iter().fold(0, |any, &en| any | en) != 0 {
                 for (i, &en) in c.iter().enumerate() {
@@ -258,6 +263,11 @@ pub struct DepthTest {
 pub trait PixelEngine {
     fn registers(&self) -> &Registers;
     fn registers_mut(&mut self) -> &mut Registers;
+    /// [`Registers::enabled_groups`]; a level that knows where enable has no pixel may look
+    /// only at the rest.
+    fn enabled_groups(&self, out: &mut Vec<u32>) {
+        self.registers().enabled_groups(out)
+    }
     /// A QEE command: the tree's streams, the window the pixels use, and where it goes.
     fn qee(&mut self, streams: &Streams, window: Window, sink: QeeSink, active: &[u32]);
     /// `test`'s commands on the groups `active` lists (a superset of those with an enabled
