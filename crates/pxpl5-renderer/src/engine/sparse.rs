@@ -684,7 +684,6 @@ impl SparseEngine {
         // it.
         clear_rows(plane, gpr, (old.0, old.1.min(area.y0)));
         clear_rows(plane, gpr, (old.0.max(area.y1 + 1), old.1));
-        let rows = (area.y0, area.y1 + 1);
         // Every step exactly its half-plane: one span a row.
         let exact = |b: &Bound| match *b {
             Bound::Half(h, true, _) => Some(h),
@@ -694,7 +693,7 @@ impl SparseEngine {
             half_planes.clear();
             half_planes.extend(bounds.iter().filter_map(exact));
             half_plane_rows(&ep.base, half_planes, area, (plane, gpr), spans);
-            return rows;
+            return (area.y0, area.y1 + 1);
         }
         // The seed's 128-pixel row is two groups: buffers whose length the compiler knows are
         // cleared by two stores where a slice's `fill` is a `memset` call.
@@ -708,6 +707,8 @@ impl SparseEngine {
             s.first_half = side(&ep.signs[s.first as usize], true);
         }
         let steps = (&steps[..], &bands[..]);
+        // The rows with a pixel left, which the board lists enabled groups on
+        // (`enable_rows`): about 8 of the area's 58 on the hemisphere stream.
         match g.groups_per_row {
             2 => and_rows(ep, steps, area, plane, Rows::new(ep, g, [0u64; 2], hints)),
             n => and_rows(
@@ -718,7 +719,6 @@ impl SparseEngine {
                 Rows::new(ep, g, vec![0u64; n], hints),
             ),
         }
-        rows
     }
 
     /// Flag f with its layers replayed: each pixel takes the value of the newest layer whose
@@ -1564,8 +1564,10 @@ fn and_rows<B: AsMut<[u64]> + AsRef<[u64]> + Clone>(
     area: Area,
     plane: &mut [u64],
     mut rows: Rows<B>,
-) {
+) -> (usize, usize) {
     let mut mask = rows.a.clone();
+    // The first row with a pixel left and the row after the last.
+    let mut live = (usize::MAX, 0);
     let gpr = mask.as_ref().len();
     let mut columns = rows.a.clone();
     let mut killer = 0;
@@ -1617,17 +1619,23 @@ fn and_rows<B: AsMut<[u64]> + AsRef<[u64]> + Clone>(
                 // The steps from the killer on, round to the one before it; a step that leaves
                 // no pixel leaves the mask zero.
                 let mut j = killer;
+                let mut left = true;
                 for _ in 0..steps.len() {
                     if !rows.and_step(&steps[j], py, &mut mask) {
                         killer = j;
+                        left = false;
                         break;
                     }
                     j = if j + 1 == steps.len() { 0 } else { j + 1 };
+                }
+                if left {
+                    live = (live.0.min(py), py + 1);
                 }
             }
             plane[at..at + gpr].copy_from_slice(mask.as_ref());
         }
     }
+    if live.0 < live.1 { live } else { (0, 0) }
 }
 
 /// Rows in a band solved row by row, less one: halving stops below this. On `bench
