@@ -779,6 +779,33 @@ impl Pixels {
     /// as one [`PixelEngine::depth_test`]: host work only, since a board's time never depends on
     /// its pixels and every look at them ([`Pixels::settle`]) runs what is held first.
     pub(crate) fn apply(&mut self, cmd: &Command) -> Option<ReadbackStream> {
+        // A command the sparse level defers (17 of a hemisphere receiver's 20) returns here,
+        // before the set-up the others need; not while a depth test is held, which must run
+        // on the registers as they were before it.
+        let tried = self.held.is_none() && matches!(self.engine, Engine::Sparse(_));
+        if tried && self.defer(cmd) {
+            return None;
+        }
+        self.apply_after_deferral(cmd, tried)
+    }
+
+    /// The sparse level's deferral of `cmd`, if it takes it; whether it did.
+    fn defer(&mut self, cmd: &Command) -> bool {
+        let Engine::Sparse(e) = &mut self.engine else {
+            return false;
+        };
+        let deferred = e.defer(cmd, self.origin);
+        // A changed enable makes the list of enabled groups stale.
+        if e.take_enable_materialised() || (deferred && cmd.writes_enable()) {
+            self.enabled_valid = false;
+        }
+        deferred
+    }
+
+    /// [`Pixels::apply`] for a command the sparse level did not defer (`tried`) or has not
+    /// been offered yet.
+    #[inline(never)]
+    fn apply_after_deferral(&mut self, cmd: &Command, tried: bool) -> Option<ReadbackStream> {
         if let Some(mut held) = self.held.take() {
             match *cmd {
                 Command::QeeStore {
@@ -813,7 +840,7 @@ impl Pixels {
             });
             return None;
         }
-        self.apply_now(cmd)
+        self.apply_now(cmd, tried)
     }
 
     /// Run what [`Pixels::apply`] holds back, if anything: before any look at the pixels.
@@ -832,7 +859,7 @@ impl Pixels {
             unreachable!("only a QeeCompare is held");
         };
         // The compare's preparation, as if it ran alone; no level defers a compare.
-        let every_group = self.prepare(&held.compare);
+        let every_group = self.prepare(&held.compare, false);
         debug_assert_eq!(
             every_group,
             Some(false),
@@ -852,19 +879,16 @@ impl Pixels {
     /// command is deferred, nothing more to do) and materialisation, the list of enabled groups
     /// brought up to date if the command needs it, and the QEE's streams set to its expression.
     /// `Some(every_group)`: whether the command works on every group rather than the listed ones.
-    fn prepare(&mut self, cmd: &Command) -> Option<bool> {
-        // The sparse level defers what it can and materialises what the rest reads; a changed
-        // enable makes the list of enabled groups stale.
+    /// `tried`: the sparse level was offered the command already and did not defer it.
+    fn prepare(&mut self, cmd: &Command, tried: bool) -> Option<bool> {
+        // The sparse level defers what it can and materialises what the rest reads.
+        if !tried && self.defer(cmd) {
+            return None;
+        }
         if let Engine::Sparse(e) = &mut self.engine {
-            let deferred = e.defer(cmd, self.origin);
-            if !deferred {
-                e.prepare(cmd);
-            }
-            if e.take_enable_materialised() || (deferred && cmd.writes_enable()) {
+            e.prepare(cmd);
+            if e.take_enable_materialised() {
                 self.enabled_valid = false;
-            }
-            if deferred {
-                return None;
             }
         }
         // The groups the command can change, listed only for the commands that need them (a Logic
@@ -917,8 +941,8 @@ impl Pixels {
     }
 
     /// A command applied at once.
-    fn apply_now(&mut self, cmd: &Command) -> Option<ReadbackStream> {
-        let every_group = self.prepare(cmd)?;
+    fn apply_now(&mut self, cmd: &Command, tried: bool) -> Option<ReadbackStream> {
+        let every_group = self.prepare(cmd, tried)?;
         let active = if every_group {
             &self.all_groups[..]
         } else {
