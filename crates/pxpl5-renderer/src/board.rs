@@ -466,20 +466,27 @@ impl Board {
         let cost = cycle_cost(cmd, &self.cfg);
 
         // Backing-store interlock: wait for transfers touching this command's fields (a fence
-        // waits for every transfer in flight).
-        let ready = self
-            .in_flight
-            .iter()
-            .filter(|t| {
-                matches!(cmd, Command::Fence) || cmd.fields().iter().any(|f| f.overlaps(t.field))
-            })
-            .map(|t| t.done)
-            .max()
-            .unwrap_or(Cycles::ZERO);
+        // waits for every transfer in flight). Most commands find none in flight, and skip
+        // listing their fields.
+        let ready = if self.in_flight.is_empty() {
+            Cycles::ZERO
+        } else {
+            self.in_flight
+                .iter()
+                .filter(|t| {
+                    matches!(cmd, Command::Fence)
+                        || cmd.fields().iter().any(|f| f.overlaps(t.field))
+                })
+                .map(|t| t.done)
+                .max()
+                .unwrap_or(Cycles::ZERO)
+        };
         let start = self.free_at.max(ready);
         let stall = start - self.free_at;
         let end = start + cost;
-        self.in_flight.retain(|t| t.done > start);
+        if !self.in_flight.is_empty() {
+            self.in_flight.retain(|t| t.done > start);
+        }
 
         if let Command::Save { field, .. } | Command::Load { field, .. } = *cmd {
             self.start_transfer(field, end);

@@ -27,7 +27,9 @@ use pxpl5_sim::Cycles;
 
 use crate::command::{Command, Field};
 
-/// Foreground Renderer cycles of `cmd` on a board configured by `cfg`.
+/// Foreground Renderer cycles of `cmd` on a board configured by `cfg`. Inlined into a board's
+/// `execute`, once a command.
+#[inline]
 pub fn cycle_cost(cmd: &Command, cfg: &RendererConfig) -> Cycles {
     let t = &cfg.cycles;
     let bits = |f: &Field| u64::from(f.bits);
