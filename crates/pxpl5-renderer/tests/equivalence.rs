@@ -926,58 +926,59 @@ fn a_layer_under_another_receivers_test_is_kept_unless_covered() {
 }
 
 /// A chain started from a flag's plane shares the last chain's base without comparing planes
-/// while no command has written that flag since; each way a command writes a flag without
-/// being deferred (a Logic step, a sign test that reads the flag's old value, a comparison of
-/// fields) must make the next chain from it see the new plane.
+/// while no command has written that flag since; each way a command writes a flag (a Logic
+/// step, a sign test that reads the flag's old value, a comparison of fields, all run at once;
+/// a deferred sign test's layer, replayed when the next chain starts from the flag) must make
+/// the next chain from it see the new plane.
 #[test]
 fn a_chain_from_a_rewritten_flag_starts_from_its_new_plane() {
     let edge = QeeExpr::from_raw([3, -2, -40, 0, 0, 0]);
-    let window = edge.sign_window((0, 0), 64, 16);
     let other = QeeExpr::from_raw([-1, 4, 10, 0, 0, 0]);
-    let field = Field {
-        offset: 0,
+    let field = |offset| Field {
+        offset,
         bits: 8,
         signed: true,
     };
-    let (a, b) = (
-        field,
-        Field {
-            offset: 8,
-            bits: 8,
-            signed: true,
-        },
-    );
-    let rewrites = [
-        // Not deferred: enable is not a chain when it runs.
-        Command::Logic {
-            dst: Bit::Flag(0),
-            a: Bit::Flag(0),
-            b: Bit::Flag(0),
-            op: LogicOp::NOT_B,
-        },
-        // Reads the flag's old value.
-        Command::QeeSign {
-            expr: other,
-            window: other.sign_window((0, 0), 64, 16),
-            dst: Bit::Flag(0),
-            combine: LogicOp::AND,
-        },
-        Command::Compare {
-            a,
-            b,
-            cmp: Cmp::Lt,
-            dst: Bit::Flag(0),
-            combine: LogicOp::B,
-        },
+    let (a, b) = (field(0), field(8));
+    let sign = |expr: QeeExpr, combine| Command::QeeSign {
+        expr,
+        window: expr.sign_window((0, 0), 64, 16),
+        dst: Bit::Flag(0),
+        combine,
+    };
+    let from_flag = Command::Logic {
+        dst: Bit::Enable,
+        a: Bit::Flag(0),
+        b: Bit::Flag(0),
+        op: LogicOp::A,
+    };
+    // Each write, and whether enable is solved before it (the chain from the flag ends there,
+    // so the write is not deferred under it).
+    let writes = [
+        (
+            Command::Logic {
+                dst: Bit::Flag(0),
+                a: Bit::Flag(0),
+                b: Bit::Flag(0),
+                op: LogicOp::NOT_B,
+            },
+            true,
+        ),
+        (sign(other, LogicOp::AND), true),
+        (
+            Command::Compare {
+                a,
+                b,
+                cmp: Cmp::Lt,
+                dst: Bit::Flag(0),
+                combine: LogicOp::B,
+            },
+            true,
+        ),
+        (sign(other, LogicOp::B), false),
     ];
-    for rewrite in rewrites {
-        let from_flag = Command::Logic {
-            dst: Bit::Enable,
-            a: Bit::Flag(0),
-            b: Bit::Flag(0),
-            op: LogicOp::A,
-        };
-        let stream = [
+    for (write, solved) in writes {
+        let mut stream = vec![
             Command::SetOrigin { x: 0, y: 0 },
             Command::enable_all(),
             Command::QeeStore {
@@ -985,47 +986,18 @@ fn a_chain_from_a_rewritten_flag_starts_from_its_new_plane() {
                 window: Window { shift: 0, bits: 8 },
                 dst: b,
             },
-            Command::QeeSign {
-                expr: edge,
-                window,
-                dst: Bit::Flag(0),
-                combine: LogicOp::B,
-            },
+            sign(edge, LogicOp::B),
             from_flag.clone(),
-            Command::WriteConst { dst: a, value: 5 },
-            // Gated by enable, now the flag's plane: no other chain starts in between.
-            rewrite,
-            from_flag,
-            Command::WriteConst { dst: a, value: 9 },
         ];
+        if solved {
+            stream.push(Command::WriteConst { dst: a, value: 5 });
+        }
+        // Gated by enable, the flag's plane: no other chain starts in between.
+        stream.extend([
+            write,
+            from_flag.clone(),
+            Command::WriteConst { dst: a, value: 9 },
+        ]);
         sparse_follows_integer(&small(), &stream).unwrap();
     }
-    // A deferred sign test's layer on the flag, under the chain started from it: the next
-    // chain from the flag starts from the plane with the layer replayed.
-    let from_flag = Command::Logic {
-        dst: Bit::Enable,
-        a: Bit::Flag(0),
-        b: Bit::Flag(0),
-        op: LogicOp::A,
-    };
-    let stream = [
-        Command::SetOrigin { x: 0, y: 0 },
-        Command::enable_all(),
-        Command::QeeSign {
-            expr: edge,
-            window,
-            dst: Bit::Flag(0),
-            combine: LogicOp::B,
-        },
-        from_flag.clone(),
-        Command::QeeSign {
-            expr: other,
-            window: other.sign_window((0, 0), 64, 16),
-            dst: Bit::Flag(0),
-            combine: LogicOp::B,
-        },
-        from_flag,
-        Command::WriteConst { dst: a, value: 9 },
-    ];
-    sparse_follows_integer(&small(), &stream).unwrap();
 }
