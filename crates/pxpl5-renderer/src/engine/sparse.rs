@@ -158,8 +158,8 @@ pub struct SparseEngine {
     /// Rows `start .. end` outside which the inner engine's enable plane has no set pixel, where
     /// known: the rows a materialised chain wrote, kept while enable is only ANDed with
     /// something. The board's list of enabled groups and the next chain's clearing look at these
-    /// rows only (each scanned or cleared the whole plane once a receiver: 1.5 % of `bench
-    /// renderer`'s hemisphere stream).
+    /// rows only (each scanned or cleared the whole plane once a receiver: together 1.2 % of
+    /// `bench renderer`'s hemisphere stream's instructions and 2.6 % of its hemicube's).
     enable_rows: Option<(usize, usize)>,
     /// The base a freed epoch holds, so that it keeps no plane shared.
     no_base: Arc<Vec<u64>>,
