@@ -572,13 +572,11 @@ impl SparseEngine {
             plane: (&mut plane, old),
             scratch: &mut scratch,
         });
-        self.enable_rows = Some(rows);
         self.scratch = scratch;
         self.inner.registers_mut().enable = plane;
-        // Written, at the rows known (`enable_rows`).
-        if self.base_source == Some(Bit::Enable) {
-            self.base_source = None;
-        }
+        // Written anew, its pixels on the rows the solve returned.
+        self.wrote((Bit::Enable, LogicOp::B));
+        self.enable_rows = Some(rows);
         self.release(e);
         self.enable_materialised = true;
     }
