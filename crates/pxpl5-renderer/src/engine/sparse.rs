@@ -1422,9 +1422,19 @@ fn narrow([k0, kx, ky]: [i64; 3], area: Area) -> Option<Area> {
     // `half_line`'s `c` is the half-plane's largest value at coordinate 0 of this axis over the
     // other axis's range.
     let largest = |k: i64, lo: usize, hi: usize| (k * lo as i64).max(k * hi as i64);
-    let (y0, y1) = half_line(k0 + largest(kx, area.x0, area.x1), ky, area.y0, area.y1)?;
-    let (x0, x1) = half_line(k0 + largest(ky, y0, y1), kx, area.x0, area.x1)?;
+    let (y0, y1) = half_line_at_ends(k0 + largest(kx, area.x0, area.x1), ky, area.y0, area.y1)?;
+    let (x0, x1) = half_line_at_ends(k0 + largest(ky, y0, y1), kx, area.x0, area.x1)?;
     Some(Area { x0, x1, y0, y1 })
+}
+
+/// [`half_line`], dividing only where the ends of `lo ..= hi` disagree.
+#[inline(always)]
+fn half_line_at_ends(c: i64, k: i64, lo: usize, hi: usize) -> Option<(usize, usize)> {
+    match (c + k * lo as i64 >= 0, c + k * hi as i64 >= 0) {
+        (true, true) => Some((lo, hi)),
+        (false, false) => None,
+        _ => half_line(c, k, lo, hi),
+    }
 }
 
 /// Where `c + k t >= 0` for t in `lo ..= hi`, if anywhere.
@@ -1712,11 +1722,7 @@ impl BandBound {
         // division only where the span's ends disagree.
         let [k0, kx, ky] = self.half_plane;
         let c = k0 + (ky * ya as i64).max(ky * yb as i64);
-        let half = match (c + kx * lo as i64 >= 0, c + kx * hi as i64 >= 0) {
-            (true, true) => Some((lo, hi)),
-            (false, false) => None,
-            _ => half_line(c, kx, lo, hi),
-        };
+        let half = half_line_at_ends(c, kx, lo, hi);
         let (fa, fb) = (ya as f64, yb as f64);
         match &self.shape {
             Shape::Half => half,
@@ -2283,6 +2289,30 @@ mod tests {
         }
         // The half-planes cut areas, neither emptying nor filling every one.
         assert!(pixels > 10_000, "{pixels} pixels inside");
+    }
+
+    /// `half_line_at_ends` and `half_line` both give the run of a scan where `c + k t >= 0`:
+    /// for rising, falling and flat lines, wholly in, wholly out and cut.
+    #[test]
+    fn half_lines_are_those_of_a_scan() {
+        let mut r = 0x5eed_u64;
+        let mut cut = 0;
+        for _ in 0..20_000 {
+            let k = draw(&mut r, -40, 40);
+            let c = draw(&mut r, -3_000, 3_000);
+            let lo = draw(&mut r, 0, 127) as usize;
+            let hi = draw(&mut r, lo as i64, 127) as usize;
+            let holds: Vec<usize> = (lo..=hi).filter(|&t| c + k * t as i64 >= 0).collect();
+            let scan = holds.first().map(|&a| (a, *holds.last().unwrap()));
+            assert_eq!(half_line(c, k, lo, hi), scan, "{c} + {k} t on {lo}..={hi}");
+            assert_eq!(
+                half_line_at_ends(c, k, lo, hi),
+                scan,
+                "{c} + {k} t on {lo}..={hi}"
+            );
+            cut += usize::from(scan.is_some_and(|s| s != (lo, hi)));
+        }
+        assert!(cut > 1_000, "{cut} lines cut");
     }
 
     /// `mul128` is `checked_mul`: inside i64 and out, at the extremes, and past overflow.
