@@ -369,6 +369,19 @@ pub(super) fn sign_row<const CHECKS: bool>(
     if v.d == 0 {
         return linear_sign_row::<CHECKS>(v, window, range, (lo, hi), out);
     }
+    // A row concave along it (d < 0) is least at an end of the span, a convex one greatest:
+    // ends that agree on the sign then decide every pixel between them (a hemisphere edge's
+    // ellipse inside, on the rows a receiver lies within, is >= 0 at both ends). Values
+    // between the ends could wrap only where the row checks.
+    if !CHECKS {
+        let (fa, fb) = (v.at(lo), v.at(hi));
+        if v.d < 0 && fa >= 0 && fb >= 0 {
+            return set_span(out, lo, hi);
+        }
+        if v.d > 0 && fa < 0 && fb < 0 {
+            return;
+        }
+    }
     // f(px + 1) - f(px) = D (2x + 1) + b: linear in px, so f is monotone on [lo, k] and [k, hi]
     // where k is the first px at which the difference changes sign class.
     let diff = |px: usize| v.diff(px);
