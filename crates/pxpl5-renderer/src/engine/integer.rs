@@ -369,12 +369,13 @@ pub(super) fn sign_row<const CHECKS: bool>(
     if v.d == 0 {
         return linear_sign_row::<CHECKS>(v, window, range, (lo, hi), out);
     }
+    // V at the span's ends, each evaluated once: they end the pieces below too.
+    let (fa, fb) = (v.at(lo), v.at(hi));
     // A row concave along it (d < 0) is least at an end of the span, a convex one greatest:
     // ends that agree on the sign then decide every pixel between them (a hemisphere edge's
     // ellipse inside, on the rows a receiver lies within, is >= 0 at both ends). Values
     // between the ends could wrap only where the row checks.
     if !CHECKS {
-        let (fa, fb) = (v.at(lo), v.at(hi));
         if v.d < 0 && fa >= 0 && fb >= 0 {
             return set_span(out, lo, hi);
         }
@@ -395,8 +396,7 @@ pub(super) fn sign_row<const CHECKS: bool>(
             None => first_true(lo, hi - 1, lo + (hi - lo) / 2, flips),
         }
     };
-    // V at the ends of the pieces, each evaluated once (the split's value serves both pieces).
-    let (fa, fb) = (v.at(lo), v.at(hi));
+    // V at the split, which ends both pieces.
     let fk = if k < hi { v.at(k) } else { fb };
     // A monotone piece holds its values between those at its ends, so the row's window cannot
     // wrap when it holds these three; otherwise every pixel is evaluated.
