@@ -1637,6 +1637,9 @@ fn and_rows<B: AsMut<[u64]> + AsRef<[u64]> + Clone>(
                     j = if j + 1 == steps.len() { 0 } else { j + 1 };
                 }
                 if left {
+                    // Rows come in ascending order: a band's lower half is on top of the stack,
+                    // so it and all its halves are solved before its upper half.
+                    debug_assert!(py >= live.1, "row {py} after row {}", live.1);
                     live = (live.0.min(py), py + 1);
                 }
             }
