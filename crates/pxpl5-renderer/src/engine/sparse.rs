@@ -1886,6 +1886,8 @@ impl BandBound {
                     (false, false) => Some((lo, hi)),
                 }
             }
+            // The half-plane holds all of the span: so does the union.
+            Shape::Or(..) if half == Some((lo, hi)) => half,
             Shape::Or(chords, area, extremes) => {
                 let inside = extremes
                     .columns(chords, *area, ya, yb)
