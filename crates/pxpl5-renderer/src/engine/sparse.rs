@@ -1792,9 +1792,14 @@ fn band_span(
     yb: usize,
     span: (usize, usize),
 ) -> Option<(usize, usize)> {
-    bands
-        .iter()
-        .try_fold(span, |(lo, hi), b| b.span(ya, yb, lo, hi))
+    // A loop, not `try_fold`: the compiler kept the fold a function of its own, built for the
+    // baseline instruction set rather than the solve's (`ChainPlane`); inlined, the hemisphere
+    // stream took 27.66 M instructions instead of 28.32 M.
+    let (mut lo, mut hi) = span;
+    for b in bands {
+        (lo, hi) = b.span(ya, yb, lo, hi)?;
+    }
+    Some((lo, hi))
 }
 
 /// A step's region as `and_rows` narrows a band of rows by it, with its constants found once a
